@@ -1,0 +1,293 @@
+"""Lumped-parameter feather flapped at its root in water (plain, chordwise flaps, spanwise flaps).
+
+The feather is a chain of rigid links joined by rotational springs (Stella et al. 2022, as read in
+docs/model.md): springs sit at the midpoints of N equal segments, so the first half-segment is
+rigid with the actuator and the tip link is half length (f1, f2 within 1 % of Euler–Bernoulli at
+N = 10). Each link carries quadrature points; each point has structural mass, added mass along its
+surface normal, a normal-drag area and a net-buoyancy volume. Chordwise flaps add a fold angle per
+link whose flap points move out of the plane (z); spanwise flaps replace one spring with a one-way
+hinge. Every point's position is a CasADi expression of the root angle θ0 and the generalised
+coordinates Q, so velocities, accelerations and the mass matrix follow from exact Jacobians:
+
+    M(Q) Q̈ = Σ_p J_pᵀ [F_p − M_p (j0_p θ̈0 + c_p)] − τ_internal,   M = Σ_p J_pᵀ M_p J_p,
+
+with M_p = m_p I + m_a,p n_p n_pᵀ. Added mass sits in the mass matrix because it is 100–160× the
+structural mass: applied explicitly from a lagged acceleration it is unstable.
+The load cell reads ŷ·Σ_p (F_drag,p − M_p r̈_p): the static buoyancy is tared away exactly.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import casadi as ca
+
+from .errors import ModelError
+from .model import Model, Parameter, Variable
+from .contact import one_way_stop
+from .linalg import ldl_solve
+
+MORPHOLOGIES = ("plain", "chordwise", "spanwise")
+GAUSS = (0.5 - 0.5 / math.sqrt(3.0), 0.5 + 0.5 / math.sqrt(3.0))
+# Two points at these chord fractions reproduce a strip's added mass and its first and second
+# moments about the hinge (m' = ρπb²/4, S' = m'b/2, J' = 9ρπb⁴/128).
+ADDED_MASS_CHORD = (0.5 - 1.0 / math.sqrt(32.0), 0.5 + 1.0 / math.sqrt(32.0))
+
+
+def _common_parameters() -> list[Parameter]:
+    return [
+        Parameter("length_m", 0.115, "m", 0.0, 1.0, "feather length l (paper: 11.5 cm)", True),
+        Parameter("thickness_m", 0.4e-3, "m", 0.0, 0.01, "sheet thickness (0.4 mm PP)", True),
+        Parameter("youngs_modulus_Pa", 1.5e9, "Pa", 0.0, 1e12, "Young's modulus (PP: 1.24–1.8 GPa)", True),
+        Parameter("solid_density_kg_m3", 905.0, "kg/m3", 0.0, 20000.0, "sheet density (PP 905)", True),
+        Parameter("water_density_kg_m3", 1000.0, "kg/m3", 0.0, 2000.0, "fluid density", True),
+        Parameter("gravity_m_s2", 9.81, "m/s2", 0.0, 20.0, "gravity along -y (the thrust axis)"),
+        Parameter("drag_coeff", 1.2, "1", 0.0, 10.0, "normal drag coefficient C_n (steady plate 1.2; oscillatory up to ~6)"),
+        Parameter("added_mass_scale", 1.0, "1", 0.0, 3.0, "multiplier on the DNV 3D added-mass coefficient"),
+        Parameter("joint_damping_Nms_rad", 0.0, "N.m.s/rad", 0.0, 1.0, "viscous damping of each bending joint"),
+    ]
+
+
+def _hinge_parameters(fold_limit_deg: float) -> list[Parameter]:
+    return [
+        Parameter("hinge_stiffness_Nm_rad_m", 1e-4, "N.m/rad/m", 0.0, 1.0, "weak spring of the tape hinge, per metre of hinge"),
+        Parameter("contact_stiffness_Nm_rad_m", 10.0, "N.m/rad/m", 0.0, 1e5, "stop stiffness per metre of hinge", True),
+        Parameter("contact_damping_Nms_rad_m", 0.08, "N.m.s/rad/m", 0.0, 100.0, "stop damping per metre of hinge"),
+        Parameter("contact_smoothing_rad", math.radians(0.5), "rad", 0.0, 0.2, "penetration over which the stop force ramps in", True),
+        Parameter("fold_limit_rad", math.radians(fold_limit_deg), "rad", 0.0, math.pi, "largest fold angle (second stop)", True),
+    ]
+
+
+def _morphology_parameters(morphology: str) -> list[Parameter]:
+    if morphology == "plain":
+        return [Parameter("width_m", 0.075, "m", 0.0, 1.0, "feather width w", True)]
+    if morphology == "chordwise":
+        return [
+            Parameter("width_ratio", 7.5, "1", 1.0, 50.0, "WR = w / w_spine (flaps on both sides of the spine)", True),
+            Parameter("spine_width_m", 0.01, "m", 0.0, 0.2, "spine width (paper: 1 cm)", True),
+            Parameter("flap_stiffness_share", 1.0, "1", 0.0, 1.0, "share of the flaps' own bending stiffness that adds to the span's"),
+            *_hinge_parameters(90.0),
+        ]
+    return [
+        Parameter("width_m", 0.075, "m", 0.0, 1.0, "feather width w", True),
+        Parameter("length_ratio", 2.0, "1", 1.0, 20.0, "LR = l / l_root (hinge at l_root)", True),
+        *_hinge_parameters(160.0),
+    ]
+
+
+def dnv_added_mass_coeff(aspect_ratio: ca.SX) -> ca.SX:
+    """3D added-mass coefficient of a rectangular plate, b/a >= 1 (DNV-RP-C205 Table A-2, fitted
+    to 0.12 %: 1 → 0.579, 2 → 0.757, 10 → 0.947, ∞ → 1)."""
+    return 1.0 - 0.63479 / (aspect_ratio**1.06890 + 0.50706)
+
+
+@dataclass
+class _Point:
+    position: ca.SX  # 3-vector
+    normal: ca.SX  # unit 3-vector
+    mass_kg: ca.SX
+    added_mass_kg: ca.SX
+    area_m2: ca.SX
+    volume_m3: ca.SX
+
+
+def feather_model(morphology: str = "plain", n_units: int = 10) -> Model:
+    """Build the feather model. `morphology` and `n_units` change the number of states and are
+    therefore build options; every physical constant is a parameter."""
+    if morphology not in MORPHOLOGIES:
+        raise ModelError(f"feather morphology '{morphology}' is unknown; valid: {', '.join(MORPHOLOGIES)}")
+    if not isinstance(n_units, int) or not 2 <= n_units <= 60:
+        raise ModelError(f"feather n_units = {n_units!r} must be an integer in [2, 60]")
+
+    parameters = _common_parameters() + _morphology_parameters(morphology)
+    p = ca.SX.sym("p", len(parameters))
+    P = {par.name: p[i] for i, par in enumerate(parameters)}
+    theta0, theta0_rate, theta0_accel, flow_speed = (ca.SX.sym(n) for n in ("th", "thd", "thdd", "U"))
+
+    length, thick = P["length_m"], P["thickness_m"]
+    rho, rho_s, grav = P["water_density_kg_m3"], P["solid_density_kg_m3"], P["gravity_m_s2"]
+    if morphology == "chordwise":
+        spine = P["spine_width_m"]
+        width = P["width_ratio"] * spine
+        chord = 0.5 * (width - spine)
+        bending_width = spine + 2.0 * chord * P["flap_stiffness_share"]
+        # Strips of width w_s and b have less added mass than one of width w; κ restores the flat
+        # plate's ρπw²/4 (a heuristic, see physics spec §3).
+        kappa = width**2 / (spine**2 + 2.0 * chord**2)
+    else:
+        width = P["width_m"]
+        spine, chord, bending_width, kappa = width, None, width, 1.0
+    flexural_rigidity = P["youngs_modulus_Pa"] * bending_width * thick**3 / 12.0
+    short, long_ = ca.fmin(width, length), ca.fmax(width, length)
+    added_mass_coeff = P["added_mass_scale"] * dnv_added_mass_coeff(long_ / short) * short**2 * long_ / (width**2 * length)
+
+    # Link lengths, joint kinds and bending stiffness (midpoint layout; see module docstring).
+    if morphology == "spanwise":
+        n_in = n_units // 2
+        n_out = n_units - n_in
+        root_length = length / P["length_ratio"]
+        seg_in, seg_out = root_length / n_in, (length - root_length) / n_out
+        link_lengths = [seg_in / 2] + [seg_in] * (n_in - 1) + [seg_in / 2, seg_out / 2] + [seg_out] * (n_out - 1) + [seg_out / 2]
+        joints = [("spring", flexural_rigidity / seg_in)] * n_in + [("hinge", None)] + [("spring", flexural_rigidity / seg_out)] * n_out
+    else:
+        seg = length / n_units
+        link_lengths = [seg / 2] + [seg] * (n_units - 1) + [seg / 2]
+        joints = [("spring", flexural_rigidity / seg)] * n_units
+    n_joints = len(joints)
+    n_flaps = len(link_lengths) if morphology == "chordwise" else 0
+    q = ca.SX.sym("q", n_joints)
+    psi = ca.SX.sym("psi", n_flaps)
+    Q = ca.vertcat(q, psi)
+    Q_rate = ca.SX.sym("qd", Q.numel())
+
+    z_axis = ca.DM([0.0, 0.0, 1.0])
+    points: list[_Point] = []
+    origin = ca.SX.zeros(3)
+    angle = theta0
+    for j, link_length in enumerate(link_lengths):
+        if j > 0:
+            angle = angle + q[j - 1]
+        along = ca.vertcat(ca.cos(angle), ca.sin(angle), 0)
+        normal = ca.vertcat(-ca.sin(angle), ca.cos(angle), 0)
+        for c in GAUSS:
+            points.append(_Point(
+                origin + c * link_length * along, normal,
+                rho_s * spine * thick * link_length / 2, added_mass_coeff * kappa * rho * math.pi * spine**2 / 4 * link_length / 2,
+                spine * link_length / 2, spine * thick * link_length / 2,
+            ))
+        if morphology == "chordwise":
+            fold = psi[j]
+            flap_normal = ca.cos(fold) * normal + ca.sin(fold) * z_axis
+            # Both flaps mirror each other in z: model one with doubled mass, area and added mass;
+            # their z-forces cancel and their in-plane forces add.
+            # The chord points sit where two points reproduce the strip's added mass and its first
+            # and second moments about the hinge; they also carry the drag and structural mass.
+            for c in GAUSS:
+                hinge_point = origin + c * link_length * along
+                for s in ADDED_MASS_CHORD:
+                    offset = (spine / 2 + s * chord * ca.cos(fold)) * z_axis - s * chord * ca.sin(fold) * normal
+                    quarter = link_length * chord / 4
+                    points.append(_Point(
+                        hinge_point + offset, flap_normal, 2 * rho_s * thick * quarter,
+                        2 * added_mass_coeff * kappa * rho * math.pi * chord**2 / 4 * link_length / 4,
+                        2 * quarter, 2 * thick * quarter,
+                    ))
+        origin = origin + link_length * along
+
+    # Newton–Euler in generalised coordinates with the added mass in the mass matrix:
+    # M(Q) Q̈ = Σ_p J_pᵀ [F_p − M_p (j0_p θ̈0 + c_p)] − τ_internal, with M_p = m_p I + m_a,p n nᵀ.
+    # The added-mass force is the Morison form −m_a (n·r̈) n of the spec: it leaves out the Munk
+    # moment, which flow separation at these Reynolds numbers largely destroys (docs/model.md).
+    y_axis = ca.DM([0.0, 1.0, 0.0])
+    generalized = ca.vertcat(Q, theta0)
+    generalized_rate = ca.vertcat(Q_rate, theta0_rate)
+    mass_matrix = ca.SX.zeros(Q.numel(), Q.numel())
+    force = ca.SX.zeros(Q.numel())
+    kinetic_energy = 0
+    point_terms = []
+    for pt in points:
+        jac = ca.jacobian(pt.position, Q)
+        jac0 = ca.jacobian(pt.position, theta0)
+        velocity = jac @ Q_rate + jac0 * theta0_rate
+        convective = ca.jtimes(velocity, generalized, generalized_rate)
+        jac_n = jac.T @ pt.normal  # the added mass acts along the normal only
+        normal_speed = ca.dot(velocity + flow_speed * y_axis, pt.normal)
+        drag = -0.5 * rho * P["drag_coeff"] * pt.area_m2 * ca.fabs(normal_speed) * normal_speed * pt.normal
+        buoyancy = (rho - rho_s) * pt.volume_m3 * grav * y_axis
+        prescribed = jac0 * theta0_accel + convective
+        mass_matrix += pt.mass_kg * (jac.T @ jac) + pt.added_mass_kg * (jac_n @ jac_n.T)
+        force += jac.T @ (drag + buoyancy - pt.mass_kg * prescribed) - pt.added_mass_kg * jac_n * ca.dot(pt.normal, prescribed)
+        kinetic_energy += 0.5 * pt.mass_kg * ca.dot(velocity, velocity) + 0.5 * pt.added_mass_kg * ca.dot(pt.normal, velocity) ** 2
+        point_terms.append((pt, jac, prescribed, drag, buoyancy))
+
+    internal, potential_energy, fold_angle = _internal_torques(morphology, joints, q, psi, Q_rate, P, width, link_lengths)
+    # Flaps first: their block of M is diagonal, so eliminating them first causes no fill-in.
+    order = list(range(n_joints, Q.numel())) + list(range(n_joints))
+    permuted = ldl_solve(mass_matrix[order, order], (force - internal)[order])
+    Q_accel = ca.vertcat(*[permuted[order.index(k)] for k in range(Q.numel())])
+
+    thrust = 0
+    root_torque = 0
+    for pt, jac, prescribed, drag, buoyancy in point_terms:
+        accel = jac @ Q_accel + prescribed
+        inertial = pt.mass_kg * accel + pt.added_mass_kg * ca.dot(pt.normal, accel) * pt.normal
+        thrust += ca.dot(y_axis, drag - inertial)
+        reaction = inertial - drag - buoyancy
+        root_torque += pt.position[0] * reaction[1] - pt.position[1] * reaction[0]
+    tip = origin
+
+    states = [Variable(f"joint_{k}_rad", "rad", f"relative angle of bending joint {k} (0 = root side)") for k in range(n_joints)]
+    if morphology == "spanwise":
+        states[n_in] = Variable(f"joint_{n_in}_rad", "rad", "relative angle of the spanwise hinge (fold < 0)")
+    states += [Variable(f"flap_{k}_rad", "rad", f"fold angle of the chordwise flaps on link {k}") for k in range(n_flaps)]
+    states += [Variable(s.name.replace("_rad", "_rate_rad_s"), "rad/s", "rate of " + s.name) for s in list(states)]
+    inputs = (
+        Variable("root_angle_rad", "rad", "root (actuator) angle θ0 from the x axis"),
+        Variable("root_rate_rad_s", "rad/s", "root angular rate"),
+        Variable("root_accel_rad_s2", "rad/s2", "root angular acceleration"),
+        Variable("flow_speed_m_s", "m/s", "body speed along +y (the fluid moves at -y relative to the root)"),
+    )
+    outputs = (
+        Variable("thrust_N", "N", "tared load-cell force along +y at the root"),
+        Variable("root_torque_Nm", "N.m", "torque the actuator applies about the root"),
+        Variable("tip_x_m", "m", "tip position along x"),
+        Variable("tip_y_m", "m", "tip position along y (thrust axis)"),
+        Variable("flap_angle_rad", "rad", "fold angle: mean over chordwise flaps, spanwise hinge fold; 0 plain"),
+        Variable("mechanical_energy_J", "J", "kinetic (incl. added mass) plus elastic energy"),
+    )
+    return Model(
+        name=f"feather_{morphology}",
+        description=f"{morphology} feather, {n_units} units, flapped at the root in water",
+        states=tuple(states),
+        inputs=inputs,
+        parameters=tuple(parameters),
+        outputs=outputs,
+        x=ca.vertcat(Q, Q_rate),
+        u=ca.vertcat(theta0, theta0_rate, theta0_accel, flow_speed),
+        p=p,
+        xdot=ca.vertcat(Q_rate, Q_accel),
+        y=ca.vertcat(thrust, root_torque, tip[0], tip[1], fold_angle, kinetic_energy + potential_energy),
+        options={"morphology": morphology, "n_units": n_units},
+    )
+
+
+def _internal_torques(morphology, joints, q, psi, Q_rate, P, width, link_lengths):
+    """Generalised internal torques (springs, damping, hinge stops), elastic energy and the fold
+    angle reported as an output."""
+    n_joints = q.numel()
+    torques = []
+    energy = 0
+    fold_angle = ca.SX(0)
+    for k, (kind, stiffness) in enumerate(joints):
+        rate = Q_rate[k]
+        if kind == "spring":
+            torques.append(stiffness * q[k] + P["joint_damping_Nms_rad"] * rate)
+            energy += 0.5 * stiffness * q[k] ** 2
+        else:
+            # Folding is a negative relative angle: the outer part trails on the upstroke.
+            torque, hinge_energy = _hinge(-q[k], -rate, P, width)
+            torques.append(-torque)
+            energy += hinge_energy
+            fold_angle = -q[k]
+    for k in range(psi.numel()):
+        hinge_length = 2 * link_lengths[k]  # two flaps, each hinged along the link
+        torque, hinge_energy = _hinge(psi[k], Q_rate[n_joints + k], P, hinge_length)
+        torques.append(torque)
+        energy += hinge_energy
+    if psi.numel():
+        fold_angle = ca.sum1(psi) / psi.numel()
+    return ca.vertcat(*torques), energy, fold_angle
+
+
+def _hinge(fold, fold_rate, P, hinge_length):
+    """Torque resisting `fold` (positive = folding) and its elastic energy: a weak hinge spring,
+    a stop at 0 (flat) and a stop at the fold limit, both one-way penalties exactly zero before
+    contact."""
+    k_c = P["contact_stiffness_Nm_rad_m"] * hinge_length
+    c_c = P["contact_damping_Nms_rad_m"] * hinge_length
+    eps = P["contact_smoothing_rad"]
+    flat_torque, flat_energy = one_way_stop(-fold, -fold_rate, k_c, c_c, eps)
+    limit_torque, limit_energy = one_way_stop(fold - P["fold_limit_rad"], fold_rate, k_c, c_c, eps)
+    k_h = P["hinge_stiffness_Nm_rad_m"] * hinge_length
+    torque = k_h * fold - flat_torque + limit_torque
+    return torque, 0.5 * k_h * fold**2 + flat_energy + limit_energy
