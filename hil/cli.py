@@ -1,0 +1,82 @@
+"""`featherstar emulate`: the bench emulator on the command line.
+
+`cosim.cli:main` calls `register(subparsers)` and dispatches `args.func(args)`; `python -m hil`
+offers the same commands without the rest of featherstar.
+"""
+from __future__ import annotations
+
+import argparse
+import asyncio
+
+from hil.emulator import LOADCELL_UNIT, SERVO_UNIT, Emulator, serve
+from hil.errors import HILError
+from hil.registers import available_maps, load_loadcell_map, load_servo_map
+
+_DESCRIPTION = f"""\
+Serve a Modbus TCP emulator of the feather test bench: a load-cell transmitter (unit
+{LOADCELL_UNIT}) and a servo controller (unit {SERVO_UNIT}) behind register maps, with a plant
+(rate-limited servo + rigid flat plate in water) advanced in real time at every request.
+
+Point the hardware blocks at it:
+  modbus-tcp://HOST:PORT?unit={LOADCELL_UNIT}   (LoadCell)
+  modbus-tcp://HOST:PORT?unit={SERVO_UNIT}   (Servo)
+
+Shipped register maps: {', '.join(available_maps())}; a path to a TOML map works too.
+Stop with Ctrl-C."""
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the `emulate` command to a featherstar-style subparser set."""
+    p = subparsers.add_parser(
+        "emulate", help="serve a Modbus emulator of the test bench (load cell + servo)",
+        description=_DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--host", default="127.0.0.1",
+                   help="interface to bind (default: %(default)s; 0.0.0.0 exposes it to the "
+                        "network)")
+    p.add_argument("--port", type=int, default=5020,
+                   help="TCP port; 0 picks a free one (default: %(default)s). The bound port is "
+                        "printed on the first line of output")
+    p.add_argument("--loadcell-map", default="loadcell-float32-abcd", metavar="NAME",
+                   help="load-cell register map, shipped name or TOML path "
+                        "(default: %(default)s)")
+    p.add_argument("--servo-map", default="servo-default", metavar="NAME",
+                   help="servo register map, shipped name or TOML path (default: %(default)s)")
+    p.add_argument("--noise-N", type=float, default=0.01, metavar="SD",
+                   help="standard deviation of the Gaussian load-cell noise, N "
+                        "(default: %(default)s)")
+    p.add_argument("--seed", type=int, default=None, metavar="S",
+                   help="seed of the noise generator (default: random)")
+    p.set_defaults(func=emulate)
+
+
+def emulate(args: argparse.Namespace) -> int:
+    """Run the emulator until interrupted; returns the exit status."""
+    if not 0 <= args.port <= 65535:
+        raise HILError(f"--port {args.port}: valid values are 0..65535")
+    if not args.noise_N >= 0:
+        raise HILError(f"--noise-N {args.noise_N}: must be >= 0")
+    emulator = Emulator(load_loadcell_map(args.loadcell_map), load_servo_map(args.servo_map),
+                        noise_N=args.noise_N, seed=args.seed)
+
+    def ready(port: int) -> None:
+        print(f"featherstar emulate: listening on modbus-tcp://{args.host}:{port} "
+              f"(load cell unit {LOADCELL_UNIT}: {emulator.loadcell_map.name}, "
+              f"servo unit {SERVO_UNIT}: {emulator.servo_map.name})", flush=True)
+
+    try:
+        asyncio.run(serve(emulator, args.host, args.port, asyncio.Event(), ready))
+    except KeyboardInterrupt:
+        pass
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m hil",
+                                     description="featherstar hardware-in-the-loop tools")
+    subparsers = parser.add_subparsers(dest="command", required=True)
+    register(subparsers)
+    args = parser.parse_args(argv)
+    try:
+        return args.func(args)
+    except HILError as exc:
+        parser.exit(2, f"error: {exc}\n")

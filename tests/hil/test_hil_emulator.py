@@ -1,0 +1,109 @@
+"""The analytic plant, the emulator's device behaviour at register level, and the CLI."""
+from __future__ import annotations
+
+import argparse
+import math
+
+import pytest
+from pymodbus.client import ModbusTcpClient
+
+from hil.cli import main, register
+from hil.emulator import LOADCELL_UNIT, SERVO_UNIT
+from hil.plant import FlatPlatePlant, Plant
+from hil.codec import encode_value
+from hil.registers import load_servo_map
+
+
+def strip_thrust_N(p: FlatPlatePlant, n: int = 2000) -> float:
+    """Midpoint-rule integral of the strip forces over the span, projected on the thrust axis."""
+    dr = p.length_m / n
+    total = 0.0
+    for i in range(n):
+        r = (i + 0.5) * dr
+        added_mass = p.c_a * p.rho_kg_m3 * math.pi * p.width_m**2 / 4 * r * p.accel_rad_s2
+        drag = 0.5 * p.rho_kg_m3 * p.c_n * p.width_m * abs(r * p.rate_rad_s) * r * p.rate_rad_s
+        total -= (added_mass + drag) * dr
+    return total * math.cos(p.angle_rad)
+
+
+@pytest.mark.parametrize("angle, rate, accel", [(0.0, -3.0, 0.0), (0.4, 2.0, 50.0),
+                                                (-0.7, -5.0, -120.0)])
+def test_flat_plate_root_force_matches_strip_integration(angle, rate, accel):
+    p = FlatPlatePlant(angle_rad=angle, rate_rad_s=rate, accel_rad_s2=accel)
+    assert p.thrust_N == pytest.approx(strip_thrust_N(p), rel=1e-5)
+    assert isinstance(p, Plant)
+
+
+def test_plant_is_rate_limited_settles_and_a_downstroke_pushes_up():
+    p = FlatPlatePlant()
+    p.set_setpoint_rad(-1.2)
+    thrust, rates = [], []
+    for _ in range(400):
+        p.advance(0.0025)
+        thrust.append(p.thrust_N)
+        rates.append(p.rate_rad_s)
+    assert min(rates) >= -6.2 - 1e-9 and min(rates) < -6.0
+    assert max(thrust) > 0.5                     # downstroke: positive thrust
+    assert p.angle_rad == pytest.approx(-1.2, abs=1e-3) and abs(p.thrust_N) < 1e-3
+    p.set_setpoint_rad(5.0)
+    assert p.setpoint_rad == pytest.approx(math.pi / 2)
+
+
+@pytest.mark.hil
+def test_servo_follows_setpoints_only_once_enabled_and_refuses_half_writes(emulator):
+    servo_map = load_servo_map("servo-default")
+    sp = servo_map.setpoint
+    with ModbusTcpClient("127.0.0.1", port=emulator.port, timeout=1, retries=0) as c:
+        assert not c.write_registers(sp.address, encode_value(sp, 30.0),
+                                     device_id=SERVO_UNIT).isError()
+        assert emulator.emulator.plant.setpoint_rad == 0.0          # disabled: ignored
+        c.write_register(servo_map.enable.address, servo_map.enable.value, device_id=SERVO_UNIT)
+        c.write_registers(sp.address, encode_value(sp, 30.0), device_id=SERVO_UNIT)
+        assert emulator.emulator.plant.setpoint_rad == pytest.approx(math.radians(30.0))
+        half = c.write_register(sp.address + 1, 0, device_id=SERVO_UNIT)
+        assert half.isError() and half.exception_code == 2
+        readonly = c.write_registers(servo_map.position.address, [0, 0], device_id=SERVO_UNIT)
+        assert readonly.isError() and readonly.exception_code == 2
+        undefined = c.read_input_registers(0, count=2, device_id=SERVO_UNIT)
+        assert undefined.isError() and undefined.exception_code == 2
+
+
+@pytest.mark.hil
+def test_tare_zeroes_the_load_cell(make_emulator, constant_plant):
+    emu = make_emulator(plant=constant_plant(thrust_N=0.5), noise_N=0.0)
+    with ModbusTcpClient("127.0.0.1", port=emu.port, timeout=1, retries=0) as c:
+        def read_kg() -> float:
+            regs = c.read_input_registers(0, count=2, device_id=LOADCELL_UNIT).registers
+            return c.convert_from_registers(regs, c.DATATYPE.FLOAT32)
+        assert read_kg() == pytest.approx((0.5 - 0.3) / 9.80665, rel=1e-6)
+        c.write_register(10, 1, device_id=LOADCELL_UNIT)
+        assert read_kg() == pytest.approx(0.0, abs=1e-7)
+
+
+@pytest.mark.hil
+def test_inject_refuses_unknown_faults(emulator):
+    with pytest.raises(ValueError, match="fault one of"):
+        emulator.emulator.inject("loadcell", "smoke")
+
+
+def test_cli_registers_emulate_with_documented_options(capsys):
+    parser = argparse.ArgumentParser(prog="featherstar")
+    register(parser.add_subparsers(dest="command"))
+    args = parser.parse_args(["emulate", "--port", "0", "--noise-N", "0.02", "--seed", "3",
+                              "--loadcell-map", "loadcell-int32-cdab"])
+    assert (args.port, args.noise_N, args.seed, args.host) == (0, 0.02, 3, "127.0.0.1")
+    assert args.func.__name__ == "emulate"
+    with pytest.raises(SystemExit) as info:
+        parser.parse_args(["emulate", "--help"])
+    assert info.value.code == 0
+    text = capsys.readouterr().out
+    for option in ("--host", "--port", "--loadcell-map", "--servo-map", "--noise-N", "--seed",
+                   "unit=1", "loadcell-float32-abcd"):
+        assert option in text
+
+
+def test_cli_reports_a_bad_map_and_exits_2(capsys):
+    with pytest.raises(SystemExit) as info:
+        main(["emulate", "--port", "0", "--servo-map", "no-such-map"])
+    assert info.value.code == 2
+    assert "no-such-map" in capsys.readouterr().err
