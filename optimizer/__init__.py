@@ -1,0 +1,25 @@
+"""Bayesian optimization of the feather stroke, morphology sweeps and co-design (paper Sec. II-D).
+
+The optimizer never owns the simulation: `StrokeOptimizer` is ask/tell, and everything it
+evaluates is an `Objective` (the FMU master through `SceneObjective`, or any callable returning a
+thrust `Trace`). Errors are `OptimizerError` (a `FeatherstarError`).
+"""
+from .acquisition import expected_improvement_plus
+from .bayes import Estimate, OptimizationRun, StrokeOptimizer, optimize
+from .codesign import codesign
+from .errors import OptimizerError
+from .evaluation import Evaluation, MeasurementPlan, Validation, evaluate, validate
+from .loadcell import LoadCell, Measurement, measure, thrust_ratio
+from .objective import Objective, SceneObjective, Trace, WithOverrides
+from .space import SearchSpace, ServoLimits, Variable, stroke_space, symmetric_stroke
+from .study import run_study
+from .sweep import Controller, Geometry, SweepResult, paper_geometries, run_sweep
+from .synthetic import SyntheticFeather
+
+__all__ = [
+    "Controller", "Estimate", "Evaluation", "Geometry", "LoadCell", "Measurement", "MeasurementPlan",
+    "Objective", "OptimizationRun", "OptimizerError", "SceneObjective", "SearchSpace", "ServoLimits",
+    "StrokeOptimizer", "SweepResult", "SyntheticFeather", "Trace", "Validation", "Variable", "WithOverrides",
+    "codesign", "evaluate", "expected_improvement_plus", "measure", "optimize", "paper_geometries",
+    "run_study", "run_sweep", "stroke_space", "symmetric_stroke", "thrust_ratio", "validate",
+]
