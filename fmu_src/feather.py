@@ -71,7 +71,6 @@ def _morphology_parameters(morphology: str) -> list[Parameter]:
     return [
         Parameter("width_m", 0.075, "m", 0.0, 1.0, "feather width w", True),
         Parameter("length_ratio", 2.0, "1", 1.0, 20.0, "LR = l / l_root (hinge at l_root)", True),
-        Parameter("root_stiffness_scale", 1.0, "1", 1.0, 1e4, "bending stiffness of the root section (up to the hinge) over the sheet's; > 1 for a supported root"),
         *_hinge_parameters(160.0),
     ]
 
@@ -129,7 +128,7 @@ def feather_model(morphology: str = "plain", n_units: int = 10) -> Model:
         root_length = length / P["length_ratio"]
         seg_in, seg_out = root_length / n_in, (length - root_length) / n_out
         link_lengths = [seg_in / 2] + [seg_in] * (n_in - 1) + [seg_in / 2, seg_out / 2] + [seg_out] * (n_out - 1) + [seg_out / 2]
-        joints = [("spring", P["root_stiffness_scale"] * flexural_rigidity / seg_in)] * n_in + [("hinge", None)] + [("spring", flexural_rigidity / seg_out)] * n_out
+        joints = [("spring", flexural_rigidity / seg_in)] * n_in + [("hinge", None)] + [("spring", flexural_rigidity / seg_out)] * n_out
     else:
         seg = length / n_units
         link_lengths = [seg / 2] + [seg] * (n_units - 1) + [seg / 2]
