@@ -1,0 +1,386 @@
+/* featherstar FMI 3.0 shell: the real fmi3 entry points around CasADi's generated FMU code.
+ *
+ * CasADi's generated functions trust their caller completely: an unknown value reference, the
+ * `time` reference, a call out of sequence or a NULL pointer reads or writes out of bounds.
+ * Importers do all of these (fmpy records every declared variable, `time` included), so every
+ * entry point here first checks the instance, its mode and its arguments, logs what was wrong
+ * through logMessage and returns fmi3Error; only then does it delegate to casadi_fmi3....
+ * The mode checks follow the FMI 3.0 state machine; Co-Simulation (fmi3_cosim.c) and the FMU
+ * state snapshots are the shell's own, since CasADi only provides Model Exchange.
+ */
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "fmi3Functions.h"
+#include "fmi3_shell.h"
+
+#define GET_MODES (FS_INITIALIZATION | FS_EVENT | FS_CONTINUOUS_TIME | FS_STEP | FS_TERMINATED | FS_FAILED)
+#define SET_MODES (FS_INSTANTIATED | FS_INITIALIZATION | FS_EVENT | FS_CONTINUOUS_TIME | FS_STEP)
+#define DERIVATIVE_MODES (FS_INITIALIZATION | FS_EVENT | FS_CONTINUOUS_TIME | FS_STEP | FS_TERMINATED)
+
+/* Modes in which fmi3SetFloat64 may change each kind of variable (FMI 3.0, section 3.2). */
+static const unsigned settable_in[] = {
+    [FS_VR_UNKNOWN] = 0,
+    [FS_VR_STATE] = FS_INSTANTIATED | FS_INITIALIZATION,
+    [FS_VR_INPUT] = SET_MODES,
+    [FS_VR_PARAMETER] = FS_INSTANTIATED | FS_INITIALIZATION | FS_EVENT | FS_STEP,
+    [FS_VR_CALCULATED] = 0,
+};
+
+const char* fs_mode_name(fs_mode mode) {
+  switch (mode) {
+    case FS_INSTANTIATED: return "Instantiated";
+    case FS_INITIALIZATION: return "InitializationMode";
+    case FS_EVENT: return "EventMode";
+    case FS_CONTINUOUS_TIME: return "ContinuousTimeMode";
+    case FS_STEP: return "StepMode";
+    case FS_TERMINATED: return "Terminated";
+    case FS_FAILED: return "failed (after an fmi3Error)";
+  }
+  return "unknown";
+}
+
+void fs_error(const fs_instance* s, const char* fmt, ...) {
+  char message[512];
+  va_list args;
+  /* Errors are reported whatever the logging setting: an importer still needs the cause. */
+  if (!s->log) return;
+  va_start(args, fmt);
+  vsnprintf(message, sizeof message, fmt, args);
+  va_end(args);
+  s->log(s->environment, fmi3Error, "logStatusError", message);
+}
+
+fs_instance* fs_check(fmi3Instance instance, const char* function, unsigned modes, unsigned kinds) {
+  fs_instance* s = (fs_instance*)instance;
+  if (!s) return NULL;
+  if (!(s->kind & kinds)) {
+    fs_error(s, "%s: not available in %s", function,
+             s->kind == FS_CO_SIMULATION ? "Co-Simulation" : "Model Exchange");
+    return NULL;
+  }
+  if (!(s->dyn.mode & modes)) {
+    fs_error(s, "%s: not allowed in state %s", function, fs_mode_name(s->dyn.mode));
+    return NULL;
+  }
+  return s;
+}
+
+size_t fs_work_size(size_t n_x) { return 10 * n_x; }
+
+static void reset_dynamic(fs_instance* s) {
+  s->dyn.mode = FS_INSTANTIATED;
+  s->dyn.time = 0.0;
+  s->dyn.rtol = FS_DEFAULT_RTOL;
+  s->dyn.atol = 1e-2 * FS_DEFAULT_RTOL;
+  s->dyn.h = 0.0;
+  s->dyn.err_old = 1e-4;
+  s->dyn.fsal_valid = 0;
+}
+
+static fs_instance* instantiate(fmi3String name, fmi3String token, fmi3String resources,
+                                fmi3Boolean visible, fmi3Boolean logging_on,
+                                fmi3InstanceEnvironment environment, fmi3LogMessageCallback log,
+                                fs_kind kind) {
+  const fs_model* model = fs_model_info();
+  size_t i, n_work = fs_work_size(model->n_x);
+  fs_instance* s;
+  if (!token || strcmp(token, model->instantiation_token) != 0) {
+    if (log)
+      log(environment, fmi3Error, "logStatusError",
+          "fmi3Instantiate: instantiationToken does not match modelDescription.xml");
+    return NULL;
+  }
+  s = calloc(1, sizeof(fs_instance));
+  if (!s) return NULL;
+  s->model = model;
+  s->kind = kind;
+  s->environment = environment;
+  s->log = log;
+  s->name = strdup(name ? name : "");
+  s->vr_kind = calloc(model->n_var, 1);
+  s->work = calloc(n_work ? n_work : 1, sizeof(double));
+  if (s->name && s->vr_kind && s->work)
+    s->memory = casadi_fmi3InstantiateModelExchange(s->name, token, resources, visible, logging_on,
+                                                    environment, log);
+  if (!s->memory) {
+    if (log) log(environment, fmi3Error, "logStatusError", "fmi3Instantiate: out of memory");
+    free(s->name);
+    free(s->vr_kind);
+    free(s->work);
+    free(s);
+    return NULL;
+  }
+  for (i = 1; i < model->n_var; ++i) s->vr_kind[i] = FS_VR_CALCULATED;
+  for (i = 0; i < model->n_x; ++i) s->vr_kind[model->x_vr[i]] = FS_VR_STATE;
+  for (i = 0; i < model->n_u; ++i) s->vr_kind[model->u_vr[i]] = FS_VR_INPUT;
+  for (i = 0; i < model->n_p; ++i) s->vr_kind[model->p_vr[i]] = FS_VR_PARAMETER;
+  reset_dynamic(s);
+  return s;
+}
+
+FMI3_Export fmi3Instance fmi3InstantiateModelExchange(
+    fmi3String instanceName, fmi3String instantiationToken, fmi3String resourcePath,
+    fmi3Boolean visible, fmi3Boolean loggingOn, fmi3InstanceEnvironment instanceEnvironment,
+    fmi3LogMessageCallback logMessage) {
+  return instantiate(instanceName, instantiationToken, resourcePath, visible, loggingOn,
+                     instanceEnvironment, logMessage, FS_MODEL_EXCHANGE);
+}
+
+FMI3_Export fmi3Instance fmi3InstantiateCoSimulation(
+    fmi3String instanceName, fmi3String instantiationToken, fmi3String resourcePath,
+    fmi3Boolean visible, fmi3Boolean loggingOn, fmi3Boolean eventModeUsed,
+    fmi3Boolean earlyReturnAllowed, const fmi3ValueReference requiredIntermediateVariables[],
+    size_t nRequiredIntermediateVariables, fmi3InstanceEnvironment instanceEnvironment,
+    fmi3LogMessageCallback logMessage, fmi3IntermediateUpdateCallback intermediateUpdate) {
+  fs_instance* s;
+  /* Steps never return early and there are no intermediate updates: these requests are moot. */
+  (void)earlyReturnAllowed;
+  (void)requiredIntermediateVariables;
+  (void)nRequiredIntermediateVariables;
+  (void)intermediateUpdate;
+  s = instantiate(instanceName, instantiationToken, resourcePath, visible, loggingOn,
+                  instanceEnvironment, logMessage, FS_CO_SIMULATION);
+  if (s) s->event_mode_used = eventModeUsed;
+  return s;
+}
+
+FMI3_Export void fmi3FreeInstance(fmi3Instance instance) {
+  fs_instance* s = (fs_instance*)instance;
+  if (!s) return;
+  casadi_fmi3FreeInstance(s->memory);
+  free(s->name);
+  free(s->vr_kind);
+  free(s->work);
+  free(s);
+}
+
+FMI3_Export const char* fmi3GetVersion(void) { return fmi3Version; }
+
+FMI3_Export fmi3Status fmi3SetDebugLogging(fmi3Instance instance, fmi3Boolean loggingOn,
+                                           size_t nCategories, const fmi3String categories[]) {
+  /* The shell only ever logs errors, and those are always reported. */
+  (void)loggingOn;
+  (void)nCategories;
+  (void)categories;
+  return fs_check(instance, "fmi3SetDebugLogging", FS_ANY_MODE, FS_ANY_KIND) ? fmi3OK : fmi3Error;
+}
+
+FMI3_Export fmi3Status fmi3EnterInitializationMode(fmi3Instance instance,
+                                                   fmi3Boolean toleranceDefined,
+                                                   fmi3Float64 tolerance, fmi3Float64 startTime,
+                                                   fmi3Boolean stopTimeDefined,
+                                                   fmi3Float64 stopTime) {
+  fs_instance* s = fs_check(instance, "fmi3EnterInitializationMode", FS_INSTANTIATED, FS_ANY_KIND);
+  if (!s) return fmi3Error;
+  if (!isfinite(startTime)) {
+    fs_error(s, "fmi3EnterInitializationMode: startTime is not finite");
+    return fmi3Error;
+  }
+  /* Below ~1e-13 the Dormand-Prince error estimate is mostly rounding noise. */
+  if (toleranceDefined && tolerance > 0) s->dyn.rtol = tolerance < 1e-13 ? 1e-13 : tolerance;
+  s->dyn.atol = 1e-2 * s->dyn.rtol;
+  s->dyn.time = startTime;
+  s->dyn.fsal_valid = 0;
+  if (casadi_fmi3EnterInitializationMode(s->memory, toleranceDefined, tolerance, startTime,
+                                         stopTimeDefined, stopTime) != fmi3OK)
+    return fmi3Error;
+  s->model->set_states(s->memory, startTime, NULL);
+  s->dyn.mode = FS_INITIALIZATION;
+  return fmi3OK;
+}
+
+FMI3_Export fmi3Status fmi3ExitInitializationMode(fmi3Instance instance) {
+  fs_instance* s = fs_check(instance, "fmi3ExitInitializationMode", FS_INITIALIZATION, FS_ANY_KIND);
+  if (!s) return fmi3Error;
+  if (casadi_fmi3ExitInitializationMode(s->memory) != fmi3OK) return fmi3Error;
+  s->dyn.mode = (s->kind == FS_CO_SIMULATION && !s->event_mode_used) ? FS_STEP : FS_EVENT;
+  return fmi3OK;
+}
+
+FMI3_Export fmi3Status fmi3EnterEventMode(fmi3Instance instance) {
+  fs_instance* s = fs_check(instance, "fmi3EnterEventMode", FS_CONTINUOUS_TIME | FS_STEP, FS_ANY_KIND);
+  if (!s) return fmi3Error;
+  if (s->kind == FS_CO_SIMULATION && !s->event_mode_used) {
+    fs_error(s, "fmi3EnterEventMode: instantiated with eventModeUsed = false");
+    return fmi3Error;
+  }
+  if (casadi_fmi3EnterEventMode(s->memory) != fmi3OK) return fmi3Error;
+  s->dyn.fsal_valid = 0;
+  s->dyn.mode = FS_EVENT;
+  return fmi3OK;
+}
+
+FMI3_Export fmi3Status fmi3Terminate(fmi3Instance instance) {
+  fs_instance* s = fs_check(instance, "fmi3Terminate",
+                            FS_EVENT | FS_CONTINUOUS_TIME | FS_STEP | FS_FAILED, FS_ANY_KIND);
+  if (!s) return fmi3Error;
+  if (casadi_fmi3Terminate(s->memory) != fmi3OK) return fmi3Error;
+  s->dyn.mode = FS_TERMINATED;
+  return fmi3OK;
+}
+
+FMI3_Export fmi3Status fmi3Reset(fmi3Instance instance) {
+  fs_instance* s = fs_check(instance, "fmi3Reset", FS_ANY_MODE, FS_ANY_KIND);
+  if (!s) return fmi3Error;
+  if (casadi_fmi3Reset(s->memory) != fmi3OK) return fmi3Error;
+  reset_dynamic(s);
+  return fmi3OK;
+}
+
+/* Number of values the references address, or (size_t)-1 after logging the first bad one. */
+static size_t count_values(const fs_instance* s, const char* function,
+                           const fmi3ValueReference vr[], size_t n_vr, int allow_time) {
+  size_t i, n = 0;
+  for (i = 0; i < n_vr; ++i) {
+    if (vr[i] == FS_TIME_VR && allow_time) {
+      n += 1;
+    } else if (vr[i] < s->model->n_var && s->vr_kind[vr[i]] != FS_VR_UNKNOWN) {
+      n += s->model->var_offset[vr[i] + 1] - s->model->var_offset[vr[i]];
+    } else {
+      fs_error(s, "%s: unknown value reference %u", function, (unsigned)vr[i]);
+      return (size_t)-1;
+    }
+  }
+  return n;
+}
+
+static int check_array_args(const fs_instance* s, const char* function, const void* vr,
+                            size_t n_vr, const void* values, size_t n_values, size_t expected) {
+  if (n_vr && (!vr || !values)) {
+    fs_error(s, "%s: NULL array", function);
+    return 0;
+  }
+  if (expected == (size_t)-1) return 0;
+  if (expected != n_values) {
+    fs_error(s, "%s: nValues = %zu but the value references address %zu values",
+             function, n_values, expected);
+    return 0;
+  }
+  return 1;
+}
+
+FMI3_Export fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                                      size_t nValueReferences, fmi3Float64 values[], size_t nValues) {
+  fs_instance* s = fs_check(instance, "fmi3GetFloat64", GET_MODES, FS_ANY_KIND);
+  size_t i, k, n;
+  int has_time = 0;
+  if (!s) return fmi3Error;
+  if (nValueReferences && !valueReferences) {
+    fs_error(s, "fmi3GetFloat64: NULL array");
+    return fmi3Error;
+  }
+  n = count_values(s, "fmi3GetFloat64", valueReferences, nValueReferences, 1);
+  if (!check_array_args(s, "fmi3GetFloat64", valueReferences, nValueReferences, values, nValues, n))
+    return fmi3Error;
+  for (i = 0; i < nValueReferences; ++i) has_time |= valueReferences[i] == FS_TIME_VR;
+  if (!has_time) {
+    if (casadi_fmi3GetFloat64(s->memory, valueReferences, nValueReferences, values, nValues) == fmi3OK)
+      return fmi3OK;
+    fs_error(s, "fmi3GetFloat64: model evaluation failed at t=%g", s->dyn.time);
+    return fmi3Error;
+  }
+  /* `time` lives in the shell, so a mixed request is answered one reference at a time. */
+  for (i = 0, k = 0; i < nValueReferences; ++i) {
+    if (valueReferences[i] == FS_TIME_VR) {
+      values[k++] = s->dyn.time;
+      continue;
+    }
+    n = s->model->var_offset[valueReferences[i] + 1] - s->model->var_offset[valueReferences[i]];
+    if (fmi3GetFloat64(s, &valueReferences[i], 1, &values[k], n) != fmi3OK) return fmi3Error;
+    k += n;
+  }
+  return fmi3OK;
+}
+
+FMI3_Export fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                                      size_t nValueReferences, const fmi3Float64 values[], size_t nValues) {
+  fs_instance* s = fs_check(instance, "fmi3SetFloat64", SET_MODES, FS_ANY_KIND);
+  size_t i, n;
+  if (!s) return fmi3Error;
+  if (nValueReferences && !valueReferences) {
+    fs_error(s, "fmi3SetFloat64: NULL array");
+    return fmi3Error;
+  }
+  n = count_values(s, "fmi3SetFloat64", valueReferences, nValueReferences, 0);
+  if (!check_array_args(s, "fmi3SetFloat64", valueReferences, nValueReferences, values, nValues, n))
+    return fmi3Error;
+  for (i = 0; i < nValueReferences; ++i) {
+    fs_vr_kind kind = (fs_vr_kind)s->vr_kind[valueReferences[i]];
+    if (!(settable_in[kind] & s->dyn.mode)) {
+      fs_error(s, "fmi3SetFloat64: value reference %u cannot be set in state %s%s",
+               (unsigned)valueReferences[i], fs_mode_name(s->dyn.mode),
+               kind == FS_VR_CALCULATED ? " (it is calculated)" : "");
+      return fmi3Error;
+    }
+  }
+  s->dyn.fsal_valid = 0;
+  return casadi_fmi3SetFloat64(s->memory, valueReferences, nValueReferences, values, nValues);
+}
+
+static int check_derivative_args(const fs_instance* s, const char* function,
+                                 const fmi3ValueReference unknowns[], size_t n_unknowns,
+                                 const fmi3ValueReference knowns[], size_t n_knowns,
+                                 const void* seed, size_t n_seed, const void* sensitivity,
+                                 size_t n_sensitivity, int adjoint) {
+  size_t n_out, n_in;
+  if ((n_unknowns && !unknowns) || (n_knowns && !knowns)) {
+    fs_error(s, "%s: NULL array", function);
+    return 0;
+  }
+  n_out = count_values(s, function, unknowns, n_unknowns, 0);
+  n_in = count_values(s, function, knowns, n_knowns, 0);
+  if (n_out == (size_t)-1 || n_in == (size_t)-1) return 0;
+  /* Forward mode seeds the knowns; adjoint mode seeds the unknowns. */
+  return check_array_args(s, function, knowns, n_knowns, seed, n_seed, adjoint ? n_out : n_in) &&
+         check_array_args(s, function, unknowns, n_unknowns, sensitivity, n_sensitivity,
+                          adjoint ? n_in : n_out);
+}
+
+FMI3_Export fmi3Status fmi3GetDirectionalDerivative(
+    fmi3Instance instance, const fmi3ValueReference unknowns[], size_t nUnknowns,
+    const fmi3ValueReference knowns[], size_t nKnowns, const fmi3Float64 seed[], size_t nSeed,
+    fmi3Float64 sensitivity[], size_t nSensitivity) {
+  const char* fn = "fmi3GetDirectionalDerivative";
+  fs_instance* s = fs_check(instance, fn, DERIVATIVE_MODES, FS_ANY_KIND);
+  if (!s || !check_derivative_args(s, fn, unknowns, nUnknowns, knowns, nKnowns, seed, nSeed,
+                                   sensitivity, nSensitivity, 0))
+    return fmi3Error;
+  return casadi_fmi3GetDirectionalDerivative(s->memory, unknowns, nUnknowns, knowns, nKnowns,
+                                             seed, nSeed, sensitivity, nSensitivity);
+}
+
+FMI3_Export fmi3Status fmi3GetAdjointDerivative(
+    fmi3Instance instance, const fmi3ValueReference unknowns[], size_t nUnknowns,
+    const fmi3ValueReference knowns[], size_t nKnowns, const fmi3Float64 seed[], size_t nSeed,
+    fmi3Float64 sensitivity[], size_t nSensitivity) {
+  const char* fn = "fmi3GetAdjointDerivative";
+  fs_instance* s = fs_check(instance, fn, DERIVATIVE_MODES, FS_ANY_KIND);
+  if (!s || !check_derivative_args(s, fn, unknowns, nUnknowns, knowns, nKnowns, seed, nSeed,
+                                   sensitivity, nSensitivity, 1))
+    return fmi3Error;
+  return casadi_fmi3GetAdjointDerivative(s->memory, unknowns, nUnknowns, knowns, nKnowns, seed,
+                                         nSeed, sensitivity, nSensitivity);
+}
+
+FMI3_Export fmi3Status fmi3UpdateDiscreteStates(
+    fmi3Instance instance, fmi3Boolean* discreteStatesNeedUpdate, fmi3Boolean* terminateSimulation,
+    fmi3Boolean* nominalsOfContinuousStatesChanged, fmi3Boolean* valuesOfContinuousStatesChanged,
+    fmi3Boolean* nextEventTimeDefined, fmi3Float64* nextEventTime) {
+  fs_instance* s = fs_check(instance, "fmi3UpdateDiscreteStates", FS_EVENT, FS_ANY_KIND);
+  if (!s) return fmi3Error;
+  if (!discreteStatesNeedUpdate || !terminateSimulation || !nominalsOfContinuousStatesChanged ||
+      !valuesOfContinuousStatesChanged || !nextEventTimeDefined || !nextEventTime) {
+    fs_error(s, "fmi3UpdateDiscreteStates: NULL argument");
+    return fmi3Error;
+  }
+  *nextEventTime = 0.0;
+  s->dyn.fsal_valid = 0;
+  return casadi_fmi3UpdateDiscreteStates(s->memory, discreteStatesNeedUpdate, terminateSimulation,
+                                         nominalsOfContinuousStatesChanged,
+                                         valuesOfContinuousStatesChanged, nextEventTimeDefined,
+                                         nextEventTime);
+}

@@ -1,0 +1,44 @@
+"""`featherstar build [MODEL ...] [--out DIR] [--force]`: the catalog's models as FMI 3.0 FMUs.
+
+The `featherstar` entry point (cosim.cli) owns the parser; this module only adds its
+subcommand, so that building FMUs needs nothing from cosim.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from .errors import FeatherstarError
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the `build` subcommand; it dispatches through `args.func(args)`."""
+    parser = subparsers.add_parser(
+        "build",
+        help="build FMI 3.0 FMUs (Model Exchange + Co-Simulation) of catalog models",
+        description="Build FMUs of the named catalog models (all when none are named) and "
+        "print their paths. Unchanged models come from the build cache "
+        "($FEATHERSTAR_CACHE, default ~/.cache/featherstar/fmus).",
+    )
+    parser.add_argument("models", nargs="*", metavar="MODEL", help="catalog model name (default: all)")
+    parser.add_argument("--out", type=Path, help="directory for <model>.fmu (default: the cache itself)")
+    parser.add_argument("--force", action="store_true", help="rebuild even when a cached FMU is current")
+
+    def run(args: argparse.Namespace) -> int:
+        # Imported here: the catalog builds every model's equations, which `--help` should not wait for.
+        from .catalog import MODELS
+        from .export import build_fmu
+
+        unknown = [name for name in args.models if name not in MODELS]
+        if unknown:
+            parser.error(f"unknown model(s) {', '.join(unknown)}; known models: {', '.join(MODELS)}")
+        for name in args.models or list(MODELS):
+            try:
+                print(build_fmu(MODELS[name](), args.out, force=args.force), flush=True)
+            except FeatherstarError as error:
+                print(f"featherstar build: {name}: {error}", file=sys.stderr)
+                return 1
+        return 0
+
+    parser.set_defaults(func=run)
