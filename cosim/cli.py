@@ -1,0 +1,112 @@
+"""`featherstar` command line: `run` and `scenes` here; other packages add their subcommands
+through `register(subparsers)` (fmu_src: build; optimizer; hil), each handler being args.func."""
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from pathlib import Path
+from typing import Sequence
+
+from fmu_src.errors import FeatherstarError
+
+PLUGINS = ("fmu_src.cli", "optimizer.cli", "hil.cli")
+
+
+def _parse_set(items: Sequence[str]) -> dict[str, str]:
+    out: dict[str, str] = {}
+    for item in items or ():
+        key, eq, value = item.partition("=")
+        if not eq or not key.strip():
+            raise argparse.ArgumentTypeError(f"--set '{item}' must read BLOCK.PARAM=VALUE")
+        out[key.strip()] = value.strip()
+    return out
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    from .report import summary_table, write_outputs
+    from .run import run_scene
+    from .errors import StepError
+
+    try:
+        overrides = _parse_set(args.set)
+    except argparse.ArgumentTypeError as exc:
+        print(f"featherstar run: {exc}", file=sys.stderr)
+        return 2
+    outputs = args.record.split(",") if args.record else None
+    try:
+        result = run_scene(args.scene, overrides, outputs=outputs, progress=not args.quiet)
+    except StepError as exc:
+        if exc.partial is not None and args.out:
+            paths = write_outputs(exc.partial, args.out, figure=not args.no_figure)
+            print(f"partial results up to t={exc.t_s:.6g} s written to {paths['results'].parent}", file=sys.stderr)
+        raise
+    print(summary_table(result.summary))
+    for note in result.info.get("notes", []):
+        print(f"  note: {note}")
+    if args.out:
+        paths = write_outputs(result, args.out, figure=not args.no_figure)
+        print(f"wrote {', '.join(str(p) for p in paths.values())}")
+    return 0
+
+
+def _cmd_scenes(args: argparse.Namespace) -> int:
+    from .scene import list_scenes
+
+    rows = list_scenes()
+    width = max((len(n) for n, _ in rows), default=0)
+    for name, description in rows:
+        print(f"{name:<{width}}  {description}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="featherstar", description="Co-simulation toolkit for soft robotic swimmers")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    run = sub.add_parser("run", help="run a scene and summarise it (TR, mean thrust, speed)",
+                         description="Run a shipped scene (see `featherstar scenes`) or a scene TOML file.")
+    run.add_argument("scene", help="scene name or path to a .toml file")
+    run.add_argument("--set", action="append", default=[], metavar="BLOCK.PARAM=VALUE",
+                     help="override a block parameter or option, or master.*/metrics.* (repeatable), e.g. "
+                          "feather.morphology=spanwise controller.period_s=3 master.coupling=jacobi")
+    run.add_argument("--out", type=Path, help="write summary.json, results.csv and thrust.png here")
+    run.add_argument("--record", help="comma-separated signals to record instead of the scene's (block.port)")
+    run.add_argument("--no-figure", action="store_true", help="skip the figure")
+    run.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    run.set_defaults(func=_cmd_run)
+    scenes = sub.add_parser("scenes", help="list the shipped scenes")
+    scenes.set_defaults(func=_cmd_scenes)
+    for module in PLUGINS:
+        try:
+            mod = importlib.import_module(module)
+        except ImportError:
+            continue  # an optional package is missing: its subcommands are simply absent
+        register = getattr(mod, "register", None)
+        if register is not None:
+            try:
+                register(sub)
+            except Exception as exc:  # a broken plugin must not break run/scenes
+                print(f"featherstar: could not load {module} commands: {exc}", file=sys.stderr)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 2
+    try:
+        return int(args.func(args) or 0)
+    except FeatherstarError as exc:
+        lines = [ln.strip().lstrip("- ").strip() for ln in str(exc).splitlines() if ln.strip()]
+        text = lines[0] + (" " + "; ".join(lines[1:]) if len(lines) > 1 else "") if lines else type(exc).__name__
+        print(f"featherstar: error: {text}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("featherstar: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

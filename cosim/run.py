@@ -1,0 +1,197 @@
+"""Running a scene: `run_scene(scene, overrides) -> RunResult`.
+
+The steps leave separate artefacts: the Scene (frozen data) → with overrides (a new Scene) →
+the Plan (resolved blocks, pruning, deduplication, loops; cosim.graph) → runtime units and a
+RunContext (cosim.master) → the RunResult (recorded signals, summary).
+"""
+from __future__ import annotations
+
+import dataclasses
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from .errors import SceneError, StepError
+from .graph import Plan, plan as make_plan
+from .master import RunContext, make_context, run_strong, run_weak
+from .metrics import speed_metrics, thrust_metrics, window
+from .scene import Scene, load_scene
+from .units import ModelUnit, PyUnit, Unit
+
+
+@dataclass
+class RunResult:
+    """Recorded signals (by "block.port" name, numpy arrays on `time`) and the summary."""
+
+    scene: Scene
+    time: np.ndarray
+    signals: dict[str, np.ndarray]
+    units: dict[str, str]
+    summary: dict[str, Any]
+    info: dict[str, Any] = field(default_factory=dict)
+    complete: bool = True
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self.signals[name]
+
+
+def _build_units(plan: Plan) -> dict[str, Unit]:
+    master = plan.scene.master
+    units: dict[str, Unit] = {}
+    for name in plan.instantiate:
+        rb = plan.blocks[name]
+        if rb.spec.kind == "recorder":
+            continue
+        if rb.obj is not None:
+            units[name] = PyUnit(rb.obj)
+        elif rb.model is not None and master.backend == "casadi":
+            units[name] = ModelUnit(name, rb.model, rb.parameters)
+        elif rb.model is not None:
+            from .fmu_block import FmuUnit, model_fmu_info
+
+            try:
+                from fmu_src.export import build_fmu
+            except ImportError as exc:
+                raise SceneError(f"block '{name}': FMU export is not available ({exc}); "
+                                 "set master.backend = casadi to run models in-process") from None
+            path = build_fmu(rb.model)
+            info = model_fmu_info(rb.model, Path(path), name)
+            units[name] = FmuUnit(name, info, rb.parameters, _fmu_mode(master.coupling, info, name))
+        elif rb.fmu_info is not None:
+            from .fmu_block import FmuUnit
+
+            units[name] = FmuUnit(name, rb.fmu_info, rb.parameters, _fmu_mode(master.coupling, rb.fmu_info, name))
+        else:  # pragma: no cover
+            raise SceneError(f"block '{name}' ({rb.spec.kind}) cannot be instantiated")
+    return units
+
+
+def _fmu_mode(coupling: str, info: Any, name: str) -> str:
+    if coupling == "strong":
+        if not info.has_me:
+            raise SceneError(f"block '{name}': the FMU has no Model Exchange interface, needed by "
+                             "master.coupling = strong; use jacobi or gauss-seidel")
+        return "me"
+    return "cs" if info.has_cs else "me"
+
+
+class _Progress:
+    def __init__(self, t_end: float, label: str) -> None:
+        from tqdm import tqdm
+
+        self.bar = tqdm(total=round(t_end, 6), unit="s sim", file=sys.stderr, desc=label, leave=False,
+                        bar_format="{desc}: {percentage:3.0f}%|{bar}| {n:.2f}/{total:.2f} s sim [{elapsed}<{remaining}]")
+
+    def __call__(self, t: float) -> None:
+        self.bar.n = round(t, 6)
+        self.bar.refresh()
+
+    def close(self) -> None:
+        self.bar.close()
+
+
+def run_scene(
+    scene: str | Path | Scene,
+    overrides: Mapping[str, str | float] | None = None,
+    *,
+    outputs: Sequence[str] | None = None,
+    progress: bool = False,
+) -> RunResult:
+    """Run a scene (name, path or Scene) with "block.param" overrides.
+
+    outputs: signals to record ("block.port"); default: the recorders' signals. The metrics'
+    signals are always recorded. Only blocks feeding these signals are instantiated.
+    Raises SceneError before anything runs, StepError on a failure during the run (with
+    `.partial`, a RunResult of what was computed so far).
+    """
+    wall0 = time.perf_counter()
+    base = load_scene(scene)
+    sc = base.with_overrides(overrides)
+    plan = make_plan(sc, outputs)
+    t0, t_end = 0.0, plan.t_end_s
+    t_build = time.perf_counter()
+    units = _build_units(plan)
+    ctx = make_context(plan, units)
+    ctx.stats["build_s"] = time.perf_counter() - t_build
+    bar = _Progress(t_end, sc.name) if progress else None
+    ctx.progress = bar
+    error: StepError | None = None
+    started: list[Unit] = []
+    try:
+        for u in units.values():
+            ctx.t = t0
+            started.append(u)
+            u.start(t0, t_end, sc.master.rtol)
+        if sc.master.coupling == "strong":
+            run_strong(ctx, t0, t_end)
+        else:
+            run_weak(ctx, t0, t_end)
+    except StepError as exc:
+        error = exc
+    finally:
+        for u in started:
+            u.close()
+        if bar is not None:
+            bar.close()
+    result = _result(plan, ctx, time.perf_counter() - wall0, overrides, error)
+    if error is not None:
+        error.partial = result
+        raise error
+    return result
+
+
+def _loop_stats(ctx: RunContext) -> list[dict[str, Any]]:
+    merged: dict[str, dict[str, Any]] = {}
+    for solver in ctx.loop_solvers:  # one solver per schedule (rhs, recording, start): merge
+        entry = merged.setdefault(solver.description, {"loop": solver.description, "solves": 0, "iterations": 0})
+        entry["solves"] += solver.solves
+        entry["iterations"] += solver.iterations
+    return list(merged.values())
+
+
+def _result(plan: Plan, ctx: RunContext, wall: float, overrides: Mapping[str, Any] | None,
+            error: StepError | None) -> RunResult:
+    sc = plan.scene
+    n = len(ctx.rows)
+    t = np.asarray(ctx.times, dtype=float)
+    data = np.asarray(ctx.rows, dtype=float).reshape(n, len(plan.requested))
+    signals = {str(ref): data[:, j].copy() for j, ref in enumerate(plan.requested)}
+    units = {str(ref): plan.blocks[ref.block].outputs[ref.port].unit for ref in plan.requested}
+    summary: dict[str, Any] = {
+        "scene": sc.name,
+        "coupling": sc.master.coupling,
+        "wall_time_s": wall,
+        "t_end_s": plan.t_end_s,
+        "period_s": plan.period_s,
+    }
+    if sc.master.coupling == "strong":
+        summary.update(method=sc.master.method, rtol=sc.master.rtol, atol=sc.master.atol)
+    else:
+        summary.update(step_s=sc.master.step_s, adaptive=sc.master.adaptive)
+    if error is None and n > 1:
+        a, b, k = window(float(t[-1]), plan.period_s, sc.metrics.settle_periods, float(t[0]))
+        summary.update(window_s=[a, b], periods_used=k)
+        if sc.metrics.thrust:
+            summary.update(thrust_metrics(t, signals[sc.metrics.thrust], a, b, plan.period_s, k))
+        if sc.metrics.position or sc.metrics.speed:
+            summary.update(speed_metrics(t, a, b, signals.get(sc.metrics.position) if sc.metrics.position else None,
+                                         signals.get(sc.metrics.speed) if sc.metrics.speed else None))
+    if error is not None:
+        summary.update(error=str(error), failed_block=error.block, failed_at_s=error.t_s)
+    info = {
+        "instantiated": list(plan.instantiate),
+        "aliases": {k: v for k, v in plan.alias_of.items() if k != v},
+        "pruned": list(plan.pruned),
+        "notes": list(plan.notes),
+        "ignored": [f"{n}: {note}" for n in plan.instantiate for note in plan.blocks[n].notes],
+        "stats": dict(ctx.stats),
+        "loops": _loop_stats(ctx),
+        "overrides": {k: str(v) for k, v in (overrides or {}).items()},
+        "scene_fingerprint": sc.fingerprint(),
+    }
+    summary["stats"] = info["stats"]
+    return RunResult(sc, t, signals, units, summary, info, complete=error is None)
