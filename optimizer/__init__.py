@@ -9,7 +9,7 @@ from .bayes import Estimate, OptimizationRun, StrokeOptimizer, optimize
 from .codesign import codesign
 from .errors import OptimizerError
 from .evaluation import Evaluation, MeasurementPlan, Validation, evaluate, validate
-from .loadcell import LoadCell, Measurement, measure, thrust_ratio
+from .loadcell import LoadCell, Measurement, measure
 from .objective import Objective, SceneObjective, Trace, WithOverrides
 from .space import SearchSpace, ServoLimits, Variable, stroke_space, symmetric_stroke
 from .study import run_study
@@ -21,5 +21,5 @@ __all__ = [
     "Objective", "OptimizationRun", "OptimizerError", "SceneObjective", "SearchSpace", "ServoLimits",
     "StrokeOptimizer", "SweepResult", "SyntheticFeather", "Trace", "Validation", "Variable", "WithOverrides",
     "codesign", "evaluate", "expected_improvement_plus", "measure", "optimize", "paper_geometries",
-    "run_study", "run_sweep", "stroke_space", "symmetric_stroke", "thrust_ratio", "validate",
+    "run_study", "run_sweep", "stroke_space", "symmetric_stroke", "validate",
 ]

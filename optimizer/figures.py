@@ -1,0 +1,93 @@
+"""Figures in the style of the paper: Fig. 3 (sweep), Fig. 6 (optimizer progress), Fig. 8 (validation).
+
+Headless (Agg); every function writes one file and returns its path.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Mapping, Sequence
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402  (after choosing the headless backend)
+import numpy as np  # noqa: E402
+
+_CONTROLLER_ORDER = ("best", "baseline", "worst")
+_CONTROLLER_COLOURS = {"best": "tab:green", "baseline": "tab:gray", "worst": "tab:red"}
+
+
+def progress_figure(
+    evaluations: Sequence[Mapping], estimates: Sequence[Mapping | None], names: Sequence[str], path: str | Path
+) -> Path:
+    """Fig. 6: observed and estimated TR per iteration, then each variable (observed points and
+    the current best-estimate point)."""
+    iterations = np.arange(1, len(evaluations) + 1)
+    fig, axes = plt.subplots(1 + len(names), 1, sharex=True, figsize=(6, 1.8 * (1 + len(names))))
+    estimated = [math.nan if e is None else e["thrust_ratio"] for e in estimates]
+    axes[0].plot(iterations, [e["thrust_ratio"] for e in evaluations], "o", ms=4, label="observed")
+    axes[0].plot(iterations, estimated, "-", lw=2, label="estimated (best posterior mean)")
+    axes[0].set_ylabel("TR")
+    axes[0].legend(fontsize=7)
+    for ax, name in zip(axes[1:], names):
+        ax.plot(iterations, [e["params"][name] for e in evaluations], "o", ms=4, color="tab:blue")
+        ax.plot(iterations, [math.nan if e is None else e["params"][name] for e in estimates], "-", color="tab:orange")
+        ax.set_ylabel(name, fontsize=7)
+    axes[-1].set_xlabel("iteration")
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def validation_figure(rows: Sequence[Mapping], path: str | Path) -> Path:
+    """Fig. 8: TR and mean thrust (mean ± sd over the validation repeats) per morphology and
+    controller. Rows: morphology, controller (best/baseline/worst), thrust_ratio(_sd), mean_thrust_N(_sd)."""
+    morphologies = list(dict.fromkeys(r["morphology"] for r in rows))
+    controllers = [c for c in _CONTROLLER_ORDER if any(r["controller"] == c for r in rows)]
+    width = 0.8 / max(len(controllers), 1)
+    fig, axes = plt.subplots(2, 1, sharex=True, figsize=(6, 5))
+    for k, controller in enumerate(controllers):
+        for ax, key, scale in ((axes[0], "thrust_ratio", 1.0), (axes[1], "mean_thrust_N", 1e3)):
+            values, errors = [], []
+            for morphology in morphologies:
+                row = next((r for r in rows if r["morphology"] == morphology and r["controller"] == controller), None)
+                values.append(math.nan if row is None else row[key] * scale)
+                errors.append(0.0 if row is None else _sd(row, key) * scale)
+            x = np.arange(len(morphologies)) + (k - (len(controllers) - 1) / 2) * width
+            ax.bar(x, values, width, yerr=errors, capsize=3, label=controller, color=_CONTROLLER_COLOURS[controller])
+    axes[0].axhline(1.0, color="k", lw=0.8, ls=":")
+    axes[0].set_ylabel("TR")
+    axes[0].legend(fontsize=7)
+    axes[1].set_ylabel("mean thrust (mN)")
+    axes[1].set_xticks(np.arange(len(morphologies)), morphologies, fontsize=8)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def sweep_figure(table: Sequence[Mapping], metrics: Sequence[str], path: str | Path) -> Path:
+    """Fig. 3: per-geometry maxima over controllers against WR or LR, one panel per family."""
+    families = list(dict.fromkeys(r["family"] for r in table))
+    fig, axes = plt.subplots(len(metrics), len(families), figsize=(4 * len(families), 2.6 * len(metrics)), squeeze=False)
+    for column, family in enumerate(families):
+        rows = sorted((r for r in table if r["family"] == family), key=lambda r: r["ratio"])
+        for row_index, metric in enumerate(metrics):
+            ax = axes[row_index][column]
+            ax.plot([r["ratio"] for r in rows], [r[metric] for r in rows], "o-", ms=3)
+            ax.set_ylabel(f"max {metric}", fontsize=8)
+            ax.set_xlabel("WR = w / w_spine" if family == "chordwise" else "LR = l / l_root")
+            ax.set_title(family, fontsize=9)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def _sd(row: Mapping, key: str) -> float:
+    sd = row.get(key.replace("_N", "") + "_sd_N" if key.endswith("_N") else key + "_sd", 0.0)
+    return 0.0 if sd is None or not math.isfinite(sd) else float(sd)
+
+
+def _save(fig: plt.Figure, path: str | Path) -> Path:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path

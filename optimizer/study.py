@@ -1,0 +1,135 @@
+"""The paper's controller study for one feather: optimize, validate the optimum and the baseline.
+
+1. Bayesian optimization of the stroke (`optimizer.bayes.optimize`, logged, resumable);
+2. the reported optimum is the evaluated point with the best posterior mean;
+3. it and the symmetric baseline are validated like the paper's Sec. III-D: 10 sets of 5 cycles;
+4. `summary.json`, Fig. 6 (progress) and Fig. 8 (validation) go next to the log.
+"""
+from __future__ import annotations
+
+import json
+import math
+import time
+from pathlib import Path
+from typing import Callable, Mapping
+
+from .bayes import DEFAULT_INITIAL_POINTS, DEFAULT_ITERATIONS, OptimizationRun, optimize
+from .acquisition import DEFAULT_EXPLORATION_RATIO
+from .evaluation import MeasurementPlan, validate
+from .figures import progress_figure, validation_figure
+from .log import dumps
+from .objective import Objective
+from .space import LOG_HOLD_MOVE, LOG_HOLD_UP_DOWN, LOG_UP_DOWN, SearchSpace, stroke_overrides, symmetric_stroke
+
+VALIDATION_REPEATS = 10
+VALIDATION_PERIODS = 5
+# Validation runs get their own noise indices: the optimum and the baseline never share noise.
+_BEST_INDEX, _BASELINE_INDEX = (0,), (1,)
+
+
+def baseline_point(space: SearchSpace, like: Mapping[str, float]) -> dict[str, float]:
+    """The symmetric stroke's coordinates, with `like`'s values for any extra variables."""
+    point = dict(like)
+    point.update({LOG_UP_DOWN: 0.0, LOG_HOLD_UP_DOWN: 0.0, LOG_HOLD_MOVE: math.log10(2.0)})
+    return point
+
+
+def summarize(
+    objective: Objective,
+    space: SearchSpace,
+    run: OptimizationRun,
+    *,
+    maximize: bool,
+    plan: MeasurementPlan,
+    repeats: int = VALIDATION_REPEATS,
+    periods: int = VALIDATION_PERIODS,
+) -> dict:
+    """Validate the optimum and the baseline; the dict written as summary.json."""
+    best = run.best
+    started = time.perf_counter()
+    best_overrides = space.overrides(best.point)
+    validated = validate(objective, best_overrides, space.period_s, plan, _BEST_INDEX, repeats=repeats, periods=periods)
+    extras = {k: v for k, v in best_overrides.items() if not k.startswith("controller.")}
+    baseline_overrides = {**stroke_overrides(symmetric_stroke(space.period_s, space.amplitude_deg)), **extras}
+    baseline = validate(
+        objective, baseline_overrides, space.period_s, plan, _BASELINE_INDEX, repeats=repeats, periods=periods
+    )
+    validation_s = time.perf_counter() - started
+    return {
+        "objective": "max" if maximize else "min",
+        "iterations": len(run.evaluations),
+        "best_params": best.point,
+        "best_overrides": best_overrides,
+        "estimated_thrust_ratio": best.value,
+        "estimated_thrust_ratio_sd": best.sd,
+        "estimated_noise_sd": run.optimizer.noise_sd(),
+        "thrust_ratio": validated.thrust_ratio,
+        "thrust_ratio_sd": validated.thrust_ratio_sd,
+        "mean_thrust_N": validated.mean_thrust_N,
+        "mean_thrust_sd_N": validated.mean_thrust_sd_N,
+        "baseline_overrides": baseline_overrides,
+        "baseline_thrust_ratio": baseline.thrust_ratio,
+        "baseline_thrust_ratio_sd": baseline.thrust_ratio_sd,
+        "baseline_mean_thrust_N": baseline.mean_thrust_N,
+        "baseline_mean_thrust_sd_N": baseline.mean_thrust_sd_N,
+        "baseline_servo_violations": space.violations(baseline_point(space, best.point)),
+        "validation": {"repeats": repeats, "periods": periods, "best": validated.as_dict(), "baseline": baseline.as_dict()},
+        "measurement": plan.describe(),
+        "space": space.describe(),
+        "timing_s": {
+            **run.timing_s,
+            "validation_s": validation_s,
+            "validation_simulation_s": validated.sim_wall_s + baseline.sim_wall_s,
+        },
+    }
+
+
+def validation_rows(summary: Mapping, morphology: str) -> list[dict]:
+    """Fig. 8 rows (optimum and baseline) from a summary."""
+    controller = "best" if summary["objective"] == "max" else "worst"
+    return [
+        {"morphology": morphology, "controller": controller, "thrust_ratio": summary["thrust_ratio"],
+         "thrust_ratio_sd": summary["thrust_ratio_sd"], "mean_thrust_N": summary["mean_thrust_N"],
+         "mean_thrust_sd_N": summary["mean_thrust_sd_N"]},
+        {"morphology": morphology, "controller": "baseline", "thrust_ratio": summary["baseline_thrust_ratio"],
+         "thrust_ratio_sd": summary["baseline_thrust_ratio_sd"], "mean_thrust_N": summary["baseline_mean_thrust_N"],
+         "mean_thrust_sd_N": summary["baseline_mean_thrust_sd_N"]},
+    ]
+
+
+def run_study(
+    objective: Objective,
+    space: SearchSpace,
+    out_dir: str | Path,
+    *,
+    maximize: bool = True,
+    iterations: int = DEFAULT_ITERATIONS,
+    plan: MeasurementPlan = MeasurementPlan(),
+    resume: bool = False,
+    context: Mapping[str, object] | None = None,
+    n_initial_points: int = DEFAULT_INITIAL_POINTS,
+    exploration_ratio: float = DEFAULT_EXPLORATION_RATIO,
+    label: str = "feather",
+    compare: tuple[Mapping, ...] = (),
+    on_evaluation: Callable[[dict], None] | None = None,
+) -> dict:
+    """Optimize, validate and write DIR/evaluations.jsonl, DIR/summary.json and the two figures.
+
+    `compare` holds earlier summaries (with a "label") to draw in the same Fig. 8.
+    """
+    out_dir = Path(out_dir)
+    started = time.perf_counter()
+    run = optimize(
+        objective, space, out_dir / "evaluations.jsonl", iterations=iterations, maximize=maximize, plan=plan,
+        resume=resume, n_initial_points=n_initial_points, exploration_ratio=exploration_ratio,
+        context=context, on_evaluation=on_evaluation,
+    )
+    summary = summarize(objective, space, run, maximize=maximize, plan=plan)
+    summary["label"] = label
+    summary["context"] = dict(context or {})
+    progress_figure(run.evaluations, run.estimates, space.names, out_dir / "fig6_progress.png")
+    rows = [row for other in compare for row in validation_rows(other, other.get("label", "?"))]
+    validation_figure(rows + validation_rows(summary, label), out_dir / "fig8_validation.png")
+    summary["timing_s"]["total_s"] = time.perf_counter() - started
+    (out_dir / "summary.json").write_text(json.dumps(json.loads(dumps(summary)), indent=2) + "\n")
+    return summary

@@ -1,0 +1,61 @@
+import argparse
+import json
+
+import pytest
+
+from optimizer.cli import main, register
+
+
+def test_register_adds_the_subcommands():
+    parser = argparse.ArgumentParser()
+    register(parser.add_subparsers(dest="command"))
+    args = parser.parse_args(["optimize", "some_scene", "--objective", "min", "--iterations", "5", "--noise-N", "0",
+                              "--seed", "3", "--set", "feather.width_ratio=7.5", "--set", "feather.morphology=plain"])
+    assert args.func.__name__ == "_optimize_command"
+    assert args.overrides == [("feather.width_ratio", 7.5), ("feather.morphology", "plain")]
+    assert parser.parse_args(["sweep", "s", "--scheduler", "tcp://h:8786"]).scheduler == "tcp://h:8786"
+
+
+def test_optimize_writes_log_summary_and_figures(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert main(["optimize", "synthetic:chordwise", "--iterations", "6", "--out", str(out), "--seed", "2"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    for key in ("best_params", "thrust_ratio", "thrust_ratio_sd", "baseline_thrust_ratio", "estimated_thrust_ratio"):
+        assert key in summary
+    assert len(summary["validation"]["best"]["repeats"]) == 10
+    assert sum('"evaluation"' in line for line in (out / "evaluations.jsonl").read_text().splitlines()) == 6
+    assert (out / "fig6_progress.png").stat().st_size > 0 and (out / "fig8_validation.png").stat().st_size > 0
+    # a second, worst-controller run drawn together with the first in Fig. 8
+    worst = tmp_path / "worst"
+    assert main(["optimize", "synthetic:chordwise", "--objective", "min", "--iterations", "5", "--out", str(worst),
+                 "--compare", str(out)]) == 0
+    assert "baseline TR" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--period", "0.4"], "shorter than the servo allows"),
+    (["--bounds", "log10_up_down=0.2,-0.2"], "inverted"),
+    (["--bounds", "log10_hold_mov=-1,0"], "unknown variable 'log10_hold_mov'"),
+    (["--iterations", "2"], "must be >= n_initial_points"),
+])
+def test_bad_input_is_a_clear_error(tmp_path, capsys, argv, message):
+    assert main(["optimize", "synthetic:plain", "--out", str(tmp_path), *argv]) == 2
+    assert message in capsys.readouterr().err
+
+
+def test_sweep_command(tmp_path, capsys):
+    out = tmp_path / "sweep"
+    assert main(["sweep", "synthetic:plain", "--family", "spanwise", "--out", str(out), "--no-progress"]) == 0
+    for name in ("runs.csv", "table.csv", "fig3_sweep.png", "summary.json"):
+        assert (out / name).exists()
+    assert json.loads((out / "summary.json").read_text())["runs"] == 14 * 12
+    assert "spanwise" in capsys.readouterr().out
+
+
+def test_ctrl_c_points_to_resume(tmp_path, capsys, monkeypatch):
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr("optimizer.cli.run_study", interrupted)
+    assert main(["optimize", "synthetic:plain", "--out", str(tmp_path)]) == 130
+    assert "--resume" in capsys.readouterr().err
