@@ -97,3 +97,44 @@ def test_unknown_fmu_parameter_is_a_scene_error(lag_fmu):
     bad = _scene(lag_fmu, "strong").with_overrides({"lag.nope": 1.0})
     with pytest.raises(SceneError, match="has no tunable/fixed parameter 'nope'; it has: k, tau"):
         plan(bad)
+
+
+@pytest.fixture(scope="module")
+def ball_fmu(tmp_path_factory) -> Path:
+    if shutil.which("gcc") is None:
+        pytest.skip("gcc is needed to build the FMI 2.0 test FMU")
+    source = Path(__file__).parent / "fmi2_ball"
+    work = tmp_path_factory.mktemp("ball")
+    include = Path(fmpy.__file__).parent / "c-code"
+    subprocess.run(["gcc", "-O2", "-shared", "-fPIC", f"-I{include}", str(source / "ball.c"),
+                    "-o", str(work / "ball.so")], check=True)
+    fmu = work / "ball.fmu"
+    with zipfile.ZipFile(fmu, "w") as z:
+        z.write(source / "modelDescription.xml", "modelDescription.xml")
+        z.write(work / "ball.so", "binaries/linux64/ball.so")
+    return fmu
+
+
+@pytest.mark.parametrize("coupling", ["strong", "jacobi"])
+def test_state_events_of_a_generic_me_fmu(ball_fmu, coupling):
+    """Bouncing ball (FMI 2.0 ME only, one event indicator): CVODE's root finding locates each
+    bounce and the event iteration applies v := -e v; bounce times are analytic."""
+    scene = scene_from_dict({
+        "name": "ball", "connections": [],
+        "master": {"coupling": coupling, "t_end_s": 2.5, "output_interval_s": 0.001, "step_s": 0.01,
+                   "rtol": 1e-10, "atol": 1e-12},
+        "blocks": {"ball": {"kind": "fmu", "fmu": str(ball_fmu)},
+                   "rec": {"kind": "recorder", "signals": ["ball.h", "ball.v", "ball.bounces"]}},
+    })
+    result = run_scene(scene)
+    g, e = 9.81, 0.7
+    t1 = np.sqrt(2 / g)
+    bounce_times = [t1, t1 + 2 * e * g * t1 / g, t1 + 2 * e * g * t1 / g + 2 * e * e * g * t1 / g]
+    for k, tb in enumerate(bounce_times, start=1):  # the count steps up at each bounce, not before
+        before = result["ball.bounces"][np.searchsorted(result.time, tb - 0.011)]
+        after = result["ball.bounces"][np.searchsorted(result.time, tb + 0.011)]
+        assert (before, after) == (k - 1, k)
+    assert np.min(result["ball.h"]) > -1e-6
+    # the apex after the first bounce: e² h0
+    flight = (result.time > t1) & (result.time < bounce_times[1])
+    assert np.max(result["ball.h"][flight]) == pytest.approx(e * e * 1.0, rel=1e-3)

@@ -78,8 +78,17 @@ def test_robot_with_chordwise_flaps_swims_forward_default_run():
     ("jacobi", {"master.step_s": 2.5e-4}),
     ("gauss-seidel", {"master.step_s": 2.5e-4}),
 ])
-def test_default_testbed_agrees_with_monolithic_on_tr(coupling, extra):
-    """Chordwise WR 7.5 (chaotic): TR over the 3-period window agrees within the chaos scatter."""
-    reference = run_monolithic("testbed", None, rtol=1e-8, atol=1e-10)
+def test_default_testbed_agrees_with_monolithic_on_tr(chordwise_reference, coupling, extra):
+    """Chordwise WR 7.5 (chaotic): TR over the 3-period window agrees within the chaos scatter
+    (accurate solvers differ by ~1 % here), and pointwise over the first period."""
     result = run_scene("testbed", {"master.coupling": coupling, **extra})
-    assert result.summary["thrust_ratio"] == pytest.approx(reference.summary["thrust_ratio"], rel=0.02)
+    assert result.summary["thrust_ratio"] == pytest.approx(chordwise_reference.summary["thrust_ratio"], rel=0.02)
+    first = chordwise_reference.time <= 1.5
+    ref = chordwise_reference["feather.thrust_N"][first]
+    got = np.interp(chordwise_reference.time[first], result.time, result["feather.thrust_N"])
+    assert np.max(np.abs(got - ref)) / np.max(np.abs(ref)) < (1e-3 if coupling == "strong" else 0.05)
+
+
+@pytest.fixture(scope="module")
+def chordwise_reference():
+    return run_monolithic("testbed", None, rtol=1e-9, atol=1e-11, method="adams", compiled=True)

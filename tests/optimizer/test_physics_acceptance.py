@@ -22,10 +22,11 @@ CHORDWISE = {"feather.morphology": "chordwise", "feather.width_ratio": 7.5, "mas
 PLAIN = {"feather.morphology": "plain", "master.method": "adams"}
 
 
-def _study(tmp_path, overrides, objective):
+def _study(tmp_path, overrides, objective, iterations=30):
     summary = run_study(
         SceneObjective(SCENE, overrides), stroke_space(1.5), tmp_path / objective,
-        maximize=objective == "max", plan=MeasurementPlan(seed=0), context={"scene": SCENE, "overrides": overrides},
+        maximize=objective == "max", iterations=iterations, plan=MeasurementPlan(seed=0),
+        context={"scene": SCENE, "overrides": overrides},
     )
     print(f"{overrides} {objective}: TR {summary['thrust_ratio']:.3f} ± {summary['thrust_ratio_sd']:.3f}, "
           f"baseline {summary['baseline_thrust_ratio']:.3f} ± {summary['baseline_thrust_ratio_sd']:.3f}, "
@@ -39,16 +40,17 @@ def test_chordwise_best_beats_the_symmetric_baseline_by_half(tmp_path):
 
 
 def test_chordwise_worst_is_below_the_baseline(tmp_path):
-    worst = _study(tmp_path, CHORDWISE, "min")
+    # Finding a stroke worse than the baseline is easy; 12 iterations keep the suite in budget.
+    worst = _study(tmp_path, CHORDWISE, "min", iterations=12)
     assert worst["thrust_ratio"] < worst["baseline_thrust_ratio"]
 
 
 @pytest.mark.xfail(
-    strict=False,
+    strict=True,
     reason="the model disagrees with the paper: through the testbed scene (Adams, seed 0) the optimizer "
     "lifts the plain feather to TR 1.69 ± 0.01 (baseline 0.98), mean thrust 21 mN, with equal ramps, "
     "a 20 ms hold after the upstroke and a long hold after the downstroke",
 )
 def test_plain_feather_gains_no_asymmetry_from_the_optimizer(tmp_path):
-    best = _study(tmp_path, PLAIN, "max")
+    best = _study(tmp_path, PLAIN, "max", iterations=15)
     assert abs(best["thrust_ratio"] - 1.0) < 0.25
