@@ -52,5 +52,5 @@ def test_chordwise_worst_is_below_the_baseline(tmp_path):
     "a 20 ms hold after the upstroke and a long hold after the downstroke",
 )
 def test_plain_feather_gains_no_asymmetry_from_the_optimizer(tmp_path):
-    best = _study(tmp_path, PLAIN, "max", iterations=15)
+    best = _study(tmp_path, PLAIN, "max")
     assert abs(best["thrust_ratio"] - 1.0) < 0.25
