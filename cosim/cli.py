@@ -34,8 +34,14 @@ def _cmd_run(args: argparse.Namespace) -> int:
         print(f"featherstar run: {exc}", file=sys.stderr)
         return 2
     outputs = args.record.split(",") if args.record else None
+    scene = args.scene
+    if args.hardware:
+        from .hardware import parse_hardware, with_hardware
+        from .scene import load_scene
+
+        scene = with_hardware(load_scene(args.scene), parse_hardware(args.hardware))
     try:
-        result = run_scene(args.scene, overrides, outputs=outputs, progress=not args.quiet)
+        result = run_scene(scene, overrides, outputs=outputs, progress=not args.quiet)
     except StepError as exc:
         if exc.partial is not None and args.out:
             paths = write_outputs(exc.partial, args.out, figure=not args.no_figure)
@@ -72,6 +78,10 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--out", type=Path, help="write summary.json, results.csv and thrust.png here")
     run.add_argument("--record", help="comma-separated signals to record instead of the scene's (block.port)")
     run.add_argument("--no-figure", action="store_true", help="skip the figure")
+    run.add_argument("--hardware", action="append", default=[], metavar="SLOT=URL",
+                     help="swap a simulated block for hardware (repeatable): servo=URL, loadcell=URL, with "
+                          "URL modbus-tcp://HOST:PORT?unit=N or modbus-rtu:///dev/ttyUSB0?baudrate=...; the run "
+                          "is then paced on the wall clock (try it against `featherstar emulate`)")
     run.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     run.set_defaults(func=_cmd_run)
     scenes = sub.add_parser("scenes", help="list the shipped scenes")

@@ -373,7 +373,9 @@ class OdeGroup:
         self._ydot_type = c_double * self.n
         x0 = self._initial_states()
         rhs = self._rhs if (check_finite or self.dummy) else self._specialised_rhs()
-        self.cv = CVodeIntegrator(self.n, rhs, t0, x0, method=method, rtol=rtol, atol=atol,
+        lmm, _, nonlinear = method.partition("-")
+        self.cv = CVodeIntegrator(self.n, rhs, t0, x0, method=lmm, nonlinear=nonlinear or "newton",
+                                  rtol=rtol, atol=atol,
                                   max_step=max_step, n_roots=self.n_events,
                                   roots=self._roots if self.n_events else None)
         self.rhs_calls = 0
@@ -708,7 +710,18 @@ def run_weak(ctx: RunContext, t0: float, t_end: float) -> None:
     n_steps = n_rejected = 0
     eps = 1e-12 * max(1.0, abs(t_end))
     gs = m.coupling == "gauss-seidel"
+    wall_start = time.perf_counter()
+    misses, worst_lateness = 0, 0.0
     while t < t_end - eps:
+        if m.realtime:
+            # Hardware in the loop: a step may not start before its wall-clock time; one that
+            # starts more than a step late missed its deadline (the device saw a stale command).
+            lateness = time.perf_counter() - wall_start - (t - t0)
+            if lateness < 0:
+                time.sleep(-lateness)
+            elif lateness > h:
+                misses += 1
+            worst_lateness = max(worst_lateness, lateness)
         h_try = min(h, t_end - t)
         if t + h_try > t_end - 1e-9 * h_try:
             h_try = t_end - t
@@ -776,6 +789,8 @@ def run_weak(ctx: RunContext, t0: float, t_end: float) -> None:
         if n_steps % 256 == 0:
             ctx.tick(t)
     ctx.stats.update({"macro_steps": n_steps, "rejected_steps": n_rejected})
+    if m.realtime:
+        ctx.stats.update({"deadline_misses": misses, "worst_lateness_s": worst_lateness})
     _check_all_rows(ctx)
 
 

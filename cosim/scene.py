@@ -48,7 +48,7 @@ from typing import Any, Iterator, Mapping
 from .errors import SceneError
 
 COUPLINGS = ("strong", "jacobi", "gauss-seidel")
-METHODS = ("bdf", "adams")
+METHODS = ("bdf", "adams", "adams-fixedpoint")
 
 
 class FrozenMap(Mapping[str, Any]):
@@ -175,6 +175,8 @@ class MasterSpec:
     algebraic_loops    iterate | error: whether algebraic loops may be solved by iteration.
     backend            fmu: model blocks run as exported FMUs through fmpy; casadi: in-process
                        (no export; for development and for FMU-free checks).
+    realtime           weak coupling: pace macro steps on the wall clock (hardware in the loop);
+                       steps that start late are counted as deadline misses.
     """
 
     coupling: str = "strong"
@@ -195,6 +197,7 @@ class MasterSpec:
     loop_max_iter: int = 50
     algebraic_loops: str = "iterate"
     backend: str = "fmu"
+    realtime: bool = False
 
     def check(self) -> list[str]:
         problems = []
@@ -215,6 +218,9 @@ class MasterSpec:
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
                 problems.append(f"master.{name} = {v!r} must be >= 0")
+        if self.realtime and self.coupling == "strong":
+            problems.append("master.realtime needs a weak coupling (jacobi or gauss-seidel): hardware "
+                            "cannot be integrated inside one ODE")
         if self.t_end_s == 0 and self.periods == 0:
             problems.append("master: set t_end_s or periods")
         return problems

@@ -10,12 +10,13 @@ import asyncio
 
 from hil.emulator import LOADCELL_UNIT, SERVO_UNIT, Emulator, serve
 from hil.errors import HILError
+from hil.plant import FlatPlatePlant
 from hil.registers import available_maps, load_loadcell_map, load_servo_map
 
 _DESCRIPTION = f"""\
 Serve a Modbus TCP emulator of the feather test bench: a load-cell transmitter (unit
 {LOADCELL_UNIT}) and a servo controller (unit {SERVO_UNIT}) behind register maps, with a plant
-(rate-limited servo + rigid flat plate in water) advanced in real time at every request.
+(the servo and feather FMUs, or an analytic flat plate) advanced in real time at every request.
 
 Point the hardware blocks at it:
   modbus-tcp://HOST:PORT?unit={LOADCELL_UNIT}   (LoadCell)
@@ -46,6 +47,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         "(default: %(default)s)")
     p.add_argument("--seed", type=int, default=None, metavar="S",
                    help="seed of the noise generator (default: random)")
+    p.add_argument("--plant", choices=("fmu", "flat-plate"), default="fmu",
+                   help="what moves behind the registers: the project's servo and feather FMUs "
+                        "(default; the testbed scene's physics) or an analytic rigid flat plate")
+    p.add_argument("--morphology", choices=("plain", "chordwise", "spanwise"), default="chordwise",
+                   help="feather of the fmu plant (default: %(default)s)")
     p.set_defaults(func=emulate)
 
 
@@ -55,7 +61,13 @@ def emulate(args: argparse.Namespace) -> int:
         raise HILError(f"--port {args.port}: valid values are 0..65535")
     if not args.noise_N >= 0:
         raise HILError(f"--noise-N {args.noise_N}: must be >= 0")
-    emulator = Emulator(load_loadcell_map(args.loadcell_map), load_servo_map(args.servo_map),
+    if args.plant == "fmu":
+        from hil.fmu_plant import FmuPlant  # builds FMUs: only when asked for
+
+        plant = FmuPlant(args.morphology)
+    else:
+        plant = FlatPlatePlant()
+    emulator = Emulator(load_loadcell_map(args.loadcell_map), load_servo_map(args.servo_map), plant,
                         noise_N=args.noise_N, seed=args.seed)
 
     def ready(port: int) -> None:

@@ -329,10 +329,15 @@ class EmulatorProcess(_Handle):
 def spawn_emulator(host: str = "127.0.0.1", port: int = 0,
                    loadcell_map: str | Path = "loadcell-float32-abcd",
                    servo_map: str | Path = "servo-default", *, noise_N: float = 0.01,
-                   seed: int | None = None) -> EmulatorProcess:
-    """Run the emulator in a child process; returns once it listens (port 0 = any)."""
+                   seed: int | None = None, plant: str = "flat-plate",
+                   morphology: str = "chordwise", start_timeout_s: float = 20.0) -> EmulatorProcess:
+    """Run the emulator in a child process; returns once it listens (port 0 = any).
+
+    `plant` is "flat-plate" (analytic, starts at once) or "fmu" (the servo and feather FMUs;
+    the first start compiles them, so give it a longer `start_timeout_s`)."""
     args = ["--host", host, "--port", str(port), "--loadcell-map", str(loadcell_map),
-            "--servo-map", str(servo_map), "--noise-N", str(noise_N)]
+            "--servo-map", str(servo_map), "--noise-N", str(noise_N), "--plant", plant,
+            "--morphology", morphology]
     if seed is not None:
         args += ["--seed", str(seed)]
-    return EmulatorProcess(args)
+    return EmulatorProcess(args, start_timeout_s)
