@@ -69,6 +69,9 @@ CVodeGetNumRhsEvals = _fn(_cv, "CVodeGetNumRhsEvals", c_int, c_void_p, POINTER(c
 CVodeGetNumLinRhsEvals = _fn(_cv, "CVodeGetNumLinRhsEvals", c_int, c_void_p, POINTER(c_long))
 CVodeGetCurrentTime = _fn(_cv, "CVodeGetCurrentTime", c_int, c_void_p, POINTER(c_double))
 CVodeFree = _fn(_cv, "CVodeFree", None, POINTER(c_void_p))
+SUNNonlinSol_FixedPoint = _fn(_cv, "SUNNonlinSol_FixedPoint", c_void_p, c_void_p, c_int, c_void_p)
+SUNNonlinSolFree_FixedPoint = _fn(_cv, "SUNNonlinSolFree_FixedPoint", c_int, c_void_p)
+CVodeSetNonlinearSolver = _fn(_cv, "CVodeSetNonlinearSolver", c_int, c_void_p, c_void_p)
 
 RETURN_CODES = {
     -1: "too much work (mxstep internal steps before reaching the output time)",
@@ -107,6 +110,7 @@ class CVodeIntegrator:
         y0,
         *,
         method: str = "bdf",
+        nonlinear: str = "newton",
         rtol: float = 1e-6,
         atol: float = 1e-8,
         max_step: float = 0.0,
@@ -137,9 +141,15 @@ class CVodeIntegrator:
         self._rhs_cb = _RHS(self._rhs)
         self._check(CVodeInit(self._mem, self._rhs_cb, t0, self._y), t0)
         self._check(CVodeSStolerances(self._mem, rtol, atol), t0)
-        self._A = SUNDenseMatrix(n, n, self._ctx)
-        self._LS = SUNLinSol_Dense(self._y, self._A, self._ctx)
-        self._check(CVodeSetLinearSolver(self._mem, self._LS, self._A), t0)
+        self._NLS = None
+        if nonlinear == "fixedpoint":  # functional iteration: no Jacobian (non-stiff problems)
+            self._A = self._LS = None
+            self._NLS = SUNNonlinSol_FixedPoint(self._y, 0, self._ctx)
+            self._check(CVodeSetNonlinearSolver(self._mem, self._NLS), t0)
+        else:
+            self._A = SUNDenseMatrix(n, n, self._ctx)
+            self._LS = SUNLinSol_Dense(self._y, self._A, self._ctx)
+            self._check(CVodeSetLinearSolver(self._mem, self._LS, self._A), t0)
         if max_step > 0:
             CVodeSetMaxStep(self._mem, max_step)
         CVodeSetMaxNumSteps(self._mem, max_num_steps)
@@ -224,8 +234,11 @@ class CVodeIntegrator:
         if getattr(self, "_mem", None):
             CVodeFree(byref(c_void_p(self._mem)))
             self._mem = None
-            SUNLinSolFree(self._LS)
-            SUNMatDestroy(self._A)
+            if self._LS is not None:
+                SUNLinSolFree(self._LS)
+                SUNMatDestroy(self._A)
+            if self._NLS is not None:
+                SUNNonlinSolFree_FixedPoint(self._NLS)
             N_VDestroy(self._y)
             N_VDestroy(self._dky)
             SUNContext_Free(byref(self._ctx))
