@@ -13,11 +13,20 @@ from typing import Callable
 
 from fmpy.sundials import libraries as _libs
 
-_core = _libs.sundials_core
-_nvec = _libs.sundials_nvecserial
-_mat = _libs.sundials_sunmatrixdense
-_ls = _libs.sundials_sunlinsoldense
-_cv = _libs.sundials_cvode
+
+
+def _own_handle(lib: ctypes.CDLL) -> ctypes.CDLL:
+    """A handle of our own on fmpy's SUNDIALS library: ctypes caches function objects per handle,
+    so declaring restype/argtypes on fmpy's handle would change fmpy's own CVode solver (it
+    expects pointer results where we declare c_void_p) and break `simulate_fmu` for ME FMUs."""
+    return ctypes.CDLL(lib._name)
+
+
+_core = _own_handle(_libs.sundials_core)
+_nvec = _own_handle(_libs.sundials_nvecserial)
+_mat = _own_handle(_libs.sundials_sunmatrixdense)
+_ls = _own_handle(_libs.sundials_sunlinsoldense)
+_cv = _own_handle(_libs.sundials_cvode)
 
 CV_ADAMS, CV_BDF = 1, 2
 CV_NORMAL, CV_ONE_STEP = 1, 2

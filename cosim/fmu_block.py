@@ -17,7 +17,7 @@ from __future__ import annotations
 import ctypes
 import shutil
 import tempfile
-from ctypes import CFUNCTYPE, POINTER, byref, c_bool, c_double, c_int, c_size_t, c_uint, c_void_p
+from ctypes import CFUNCTYPE, c_bool, c_double, c_int, c_size_t, c_uint, c_void_p
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Sequence

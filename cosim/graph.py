@@ -16,13 +16,12 @@ It then decides what the run needs:
 """
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass, field
 from typing import Iterable, Sequence
 
 from .blocks import ResolvedBlock, is_rollback_capable, resolve
 from .errors import SceneError
-from .scene import Connection, PortRef, Scene
+from .scene import PortRef, Scene
 
 DIMENSIONLESS = {"", "1", "-"}
 

@@ -6,7 +6,6 @@ RunContext (cosim.master) → the RunResult (recorded signals, summary).
 """
 from __future__ import annotations
 
-import dataclasses
 import sys
 import time
 from dataclasses import dataclass, field

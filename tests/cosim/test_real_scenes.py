@@ -73,22 +73,47 @@ def test_robot_with_chordwise_flaps_swims_forward_default_run():
 
 
 @pytest.mark.stress
-@pytest.mark.parametrize("coupling,extra", [
-    ("strong", {"master.rtol": 1e-6}),
-    ("jacobi", {"master.step_s": 2.5e-4}),
-    ("gauss-seidel", {"master.step_s": 2.5e-4}),
+@pytest.mark.parametrize("coupling,extra,impulse_tol,tr_tol", [
+    ("strong", {"master.rtol": 1e-8, "master.atol": 1e-10}, 1e-4, 0.03),
+    ("jacobi", {"master.step_s": 2.5e-4}, 0.08, 0.05),
+    ("gauss-seidel", {"master.step_s": 2.5e-4}, 0.08, 0.05),
 ])
-def test_default_testbed_agrees_with_monolithic_on_tr(chordwise_reference, coupling, extra):
-    """Chordwise WR 7.5 (chaotic): TR over the 3-period window agrees within the chaos scatter
-    (accurate solvers differ by ~1 % here), and pointwise over the first period."""
+def test_default_testbed_agrees_with_monolithic(chordwise_reference, coupling, extra, impulse_tol, tr_tol):
+    """Chordwise WR 7.5 is chaotic: accurate solvers' 3-period TR scatter by ~±1 % (2.96–3.02
+    measured), so TR is checked within that band; accuracy proper is checked on the impulse
+    ∫T dt over the first period, before trajectories part."""
     result = run_scene("testbed", {"master.coupling": coupling, **extra})
-    assert result.summary["thrust_ratio"] == pytest.approx(chordwise_reference.summary["thrust_ratio"], rel=0.02)
-    first = chordwise_reference.time <= 1.5
-    ref = chordwise_reference["feather.thrust_N"][first]
-    got = np.interp(chordwise_reference.time[first], result.time, result["feather.thrust_N"])
-    assert np.max(np.abs(got - ref)) / np.max(np.abs(ref)) < (1e-3 if coupling == "strong" else 0.05)
+    ref = chordwise_reference
+    assert result.summary["thrust_ratio"] == pytest.approx(ref.summary["thrust_ratio"], rel=tr_tol)
+
+    def impulse(r):
+        y = r["feather.thrust_N"]
+        return np.concatenate([[0.0], np.cumsum(0.5 * (y[1:] + y[:-1]) * np.diff(r.time))])
+
+    first = ref.time <= 1.5
+    want = impulse(ref)[first]
+    got = np.interp(ref.time[first], result.time, impulse(result))
+    assert np.max(np.abs(got - want)) / np.max(np.abs(want)) < impulse_tol
 
 
 @pytest.fixture(scope="module")
 def chordwise_reference():
     return run_monolithic("testbed", None, rtol=1e-9, atol=1e-11, method="adams", compiled=True)
+
+
+@pytest.mark.parametrize("coupling", ["jacobi", "gauss-seidel"])
+def test_weak_coupling_first_order_on_the_plain_testbed(coupling):
+    """Zero-order hold of the servo's outputs into the feather (and of the root torque back):
+    the thrust error halves with the macro step (slope 1 measured: 0.097 / 0.047 / 0.024 at
+    1 / 0.5 / 0.25 ms). The constant is large because the feather's added-mass thrust follows
+    the servo's acceleration, which changes on the servo's 10 ms rate time constant."""
+    base = {"feather.morphology": "plain", "master.t_end_s": 1.5}
+    ref = run_scene("testbed", {**base, "master.rtol": 1e-10, "master.atol": 1e-12})
+    peak = np.max(np.abs(ref["feather.thrust_N"]))
+    steps = [1e-3, 5e-4, 2.5e-4]
+    errors = []
+    for h in steps:
+        r = run_scene("testbed", {**base, "master.coupling": coupling, "master.step_s": h, "master.rtol": 1e-9})
+        errors.append(np.max(np.abs(np.interp(ref.time, r.time, r["feather.thrust_N"]) - ref["feather.thrust_N"])) / peak)
+    slope = np.polyfit(np.log(steps), np.log(errors), 1)[0]
+    assert 0.9 < slope < 1.1, (slope, errors)
