@@ -1,0 +1,395 @@
+"""`featherstar paper`: rerun the paper's experiments in simulation and report them beside its claims.
+
+    from optimizer.paper import QUICK, generate_report
+    report_md = generate_report("runs/paper", quick=True)      # or resolution=Resolution(...)
+
+Every figure of the paper that simulation can redo (Figs. 3, 5–9) is rerun at one `Resolution`
+(quick: minutes; full: the paper's own budgets, hours), drawn as a PNG, and summed up in
+`DIR/report.md` with a table of the paper's numbers beside the simulated ones; every number is
+also in `DIR/paper.json`. Experiments are independent tasks on local processes: the optimizer
+studies (best and worst controller per feather, Fig. 7's strokes), the symmetric-stroke runs, the
+sweep runs, and the robot runs, which start as soon as the study giving their controller is done.
+A failing task is recorded and reported; it does not sink the report. Figures: `paper_figures`;
+the claims table and the markdown: `paper_report`.
+"""
+from __future__ import annotations
+
+import concurrent.futures as futures
+import dataclasses
+import json
+import math
+import os
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+from tqdm import tqdm
+
+from .bayes import optimize
+from .evaluation import VALIDATION_STREAM, MeasurementPlan, noise_rng
+from .loadcell import LoadCell, measure
+from .log import _json_safe
+from .objective import SceneObjective
+from .space import stroke_overrides, stroke_space, symmetric_stroke
+from .study import summarize
+from .sweep import PAPER_CONTROLLERS, Controller, Geometry, Task, _run_task, paper_geometries, tabulate
+
+PERIOD_S = 1.5                      # the paper's period for Figs. 5, 6, 8, 9
+FAMILY_RATIOS = {"chordwise": (5.5, 7.5, 9.5), "spanwise": (1.5, 2.0, 2.5)}  # the paper's subsets (Fig. 3)
+DEFAULT_RATIO = {"chordwise": 7.5, "spanwise": 2.0}
+MORPHOLOGIES = ("plain", "chordwise", "spanwise")
+LABELS = {"plain": "plain", "chordwise": "chordwise WR 7.5", "spanwise": "spanwise LR 2"}
+CONTROLLERS = ("best", "baseline", "worst")
+ROBOT_SAMPLE_S = 0.02               # robot traces kept for Fig. 9
+
+
+@dataclass(frozen=True)
+class Resolution:
+    """How hard each figure's experiments are run (periods are stroke periods)."""
+
+    name: str
+    sweep_geometries: int | None     # per family, the paper's chosen ratios first; None = the paper's grid
+    sweep_controllers: tuple[Controller, ...]
+    sweep_settle_periods: int
+    sweep_periods: int
+    settle_periods: int              # test-bed runs: settling before any measurement
+    periods: int                     # measured periods per optimizer evaluation
+    iterations: int                  # optimizer budget, Figs. 6 and 8 (best and worst)
+    initial_points: int
+    fig7_iterations: int
+    fig7_width_ratios: tuple[float, ...]
+    fig7_length_ratios: tuple[float, ...]
+    fig7_periods_s: tuple[float, ...]
+    validation_repeats: int          # Figs. 5 and 8: sets of `validation_periods` periods
+    validation_periods: int
+    robot_periods: int               # robot run length; speed measured after robot_settle_periods
+    robot_settle_periods: int
+    workers: int | None = None       # local processes; None = all cores
+    seed: int = 0
+
+    def describe(self) -> dict:
+        out = dataclasses.asdict(self)
+        out["sweep_controllers"] = [f"{c.t_up_s}/{c.t_down_s}/{c.t_hold_s}" for c in self.sweep_controllers]
+        if self.sweep_geometries is None:
+            out["sweep_geometries"] = "the paper's grid (22 widths, 13 lengths)"
+        if self.workers is None:
+            out["workers"] = "all cores"
+        return out
+
+
+FULL = Resolution(
+    "full", sweep_geometries=None, sweep_controllers=PAPER_CONTROLLERS, sweep_settle_periods=2, sweep_periods=3,
+    settle_periods=3, periods=5, iterations=30, initial_points=4, fig7_iterations=30,
+    fig7_width_ratios=FAMILY_RATIOS["chordwise"], fig7_length_ratios=FAMILY_RATIOS["spanwise"],
+    fig7_periods_s=(1.5, 3.0), validation_repeats=10, validation_periods=5, robot_periods=12,
+    robot_settle_periods=6,
+)
+# The two sweep controllers are those that gave the highest TR for WR 7.5 and LR 2 on the paper's
+# 12-controller grid (a probe on the kinematic scene): the quick Fig. 3 maxima stay close to the full ones.
+QUICK = dataclasses.replace(
+    FULL, name="quick", sweep_geometries=4,
+    sweep_controllers=(Controller(0.5, 1.0, 0.0), Controller(0.1, 0.5, 0.5)), sweep_settle_periods=1,
+    sweep_periods=2, settle_periods=1, periods=2, iterations=8, fig7_iterations=6,
+    fig7_width_ratios=(7.5,), fig7_length_ratios=(2.0,), validation_repeats=3, validation_periods=2,
+    robot_periods=8, robot_settle_periods=4,
+)
+
+
+def feather_overrides(family: str, ratio: float | None = None) -> dict[str, str | float]:
+    """Test-bed overrides for the paper's feathers (all 115 × 75 mm unfolded, the scene default)."""
+    if family == "plain":
+        return {"feather.morphology": "plain"}
+    key = "feather.width_ratio" if family == "chordwise" else "feather.length_ratio"
+    return {"feather.morphology": family, key: DEFAULT_RATIO[family] if ratio is None else ratio}
+
+
+@dataclass(frozen=True)
+class StudySpec:
+    """One stroke optimization on the test bed; `validate`: also validate optimum and baseline (Fig. 8)."""
+
+    key: str
+    family: str
+    ratio: float | None
+    period_s: float
+    maximize: bool
+    iterations: int
+    validate: bool
+
+
+def study_specs(res: Resolution) -> dict[str, StudySpec]:
+    specs = {}
+    for family in MORPHOLOGIES:
+        for maximize in (True, False):
+            key = f"{family}-{'max' if maximize else 'min'}"
+            specs[key] = StudySpec(key, family, DEFAULT_RATIO.get(family), PERIOD_S, maximize, res.iterations, True)
+    for family in ("chordwise", "spanwise"):
+        for ratio, period in fig7_cases(res, family):
+            key = fig7_key(family, ratio, period)
+            specs.setdefault(key, StudySpec(key, family, ratio, period, True, res.fig7_iterations, False))
+    return specs
+
+
+def fig7_cases(res: Resolution, family: str) -> list[tuple[float, float]]:
+    ratios = res.fig7_width_ratios if family == "chordwise" else res.fig7_length_ratios
+    return [(ratio, period) for period in res.fig7_periods_s for ratio in ratios]
+
+
+def fig7_key(family: str, ratio: float, period_s: float) -> str:
+    """The Fig. 6/8 best-controller study doubles as Fig. 7's entry for its own ratio at 1.5 s."""
+    if ratio == DEFAULT_RATIO[family] and period_s == PERIOD_S:
+        return f"{family}-max"
+    return f"{family}-{ratio:g}-{period_s:g}s"
+
+
+def sweep_geometries(family: str, count: int | None) -> list[Geometry]:
+    """`count` geometries of the paper's grid: nearest to the chosen ratios first (the middle one
+    first), then spread out (farthest from those taken); the reference geometry is always added."""
+    *grid, reference = paper_geometries(family)
+    if count is None or count >= len(grid):
+        return grid + [reference]
+    chosen = FAMILY_RATIOS[family]
+    taken: list[Geometry] = []
+    for target in (chosen[1], chosen[0], chosen[2]):
+        nearest = min((g for g in grid if g not in taken), key=lambda g: abs(g.ratio - target))
+        taken.append(nearest)
+    taken = taken[:count]
+    while len(taken) < count:
+        taken.append(max((g for g in grid if g not in taken), key=lambda g: min(abs(g.ratio - t.ratio) for t in taken)))
+    return sorted(taken, key=lambda g: g.ratio) + [reference]
+
+
+# ---- tasks: top-level functions, run in worker processes; each returns plain data ----
+
+def _guarded(fn: Callable[..., dict], *args: Any) -> dict:
+    """Exceptions become data (some of ours do not pickle, and one failure must not sink the report)."""
+    started = time.perf_counter()
+    try:
+        out = fn(*args)
+    except Exception as exc:  # noqa: BLE001 — reported in the report's failures section
+        return {"error": f"{type(exc).__name__}: {exc}", "wall_s": time.perf_counter() - started, "sim_s": 0.0}
+    out.setdefault("wall_s", time.perf_counter() - started)
+    return out
+
+
+def _plan(res: Resolution) -> MeasurementPlan:
+    return MeasurementPlan(settle_periods=res.settle_periods, periods=res.periods, seed=res.seed)
+
+
+def study_task(spec: StudySpec, res: Resolution, log_dir: str) -> dict:
+    objective = SceneObjective("testbed", feather_overrides(spec.family, spec.ratio))
+    space = stroke_space(spec.period_s)
+    plan = _plan(res)
+    run = optimize(
+        objective, space, Path(log_dir) / f"{spec.key}.jsonl", iterations=spec.iterations, maximize=spec.maximize,
+        plan=plan, n_initial_points=min(res.initial_points, spec.iterations),
+        context={"scene": "testbed", "overrides": feather_overrides(spec.family, spec.ratio)},
+    )
+    best = run.best
+    stroke = space.stroke(best.point)
+    out = {
+        "spec": dataclasses.asdict(spec),
+        "evaluations": [{"thrust_ratio": e["thrust_ratio"], "mean_thrust_N": e["mean_thrust_N"],
+                         "params": e["params"]} for e in run.evaluations],
+        "estimates": [None if e is None else {"thrust_ratio": e["thrust_ratio"], "params": e["params"]}
+                      for e in run.estimates],
+        "names": list(space.names),
+        "best_point": best.point, "estimated_thrust_ratio": best.value, "estimated_thrust_ratio_sd": best.sd,
+        "best_overrides": space.overrides(best.point),
+        "stroke": dataclasses.asdict(stroke),
+        "sim_s": len(run.evaluations) * (plan.settle_periods + plan.periods) * spec.period_s,
+    }
+    if spec.validate:
+        summary = summarize(objective, space, run, maximize=spec.maximize, plan=plan,
+                            repeats=res.validation_repeats, periods=res.validation_periods)
+        out["summary"] = summary
+        out["sim_s"] += 2 * (plan.settle_periods + res.validation_repeats * res.validation_periods) * spec.period_s
+    return out
+
+
+def symmetric_task(family: str, res: Resolution, out_dir: str) -> dict:
+    """Fig. 5: one long run under the symmetric stroke, read like the bench (sets of periods)."""
+    from cosim import run_scene
+    from cosim.report import plot_run
+
+    settle, sets, per = res.settle_periods, res.validation_repeats, res.validation_periods
+    load_cell = LoadCell()
+    t_end = (settle + sets * per) * PERIOD_S + 2.0 / load_cell.sample_rate_hz
+    result = run_scene("testbed", {**feather_overrides(family), **stroke_overrides(symmetric_stroke(PERIOD_S)),
+                                   "master.t_end_s": t_end, "metrics.settle_periods": settle})
+    t, thrust = result.time, result["feather.thrust_N"]
+    rng = noise_rng(res.seed, VALIDATION_STREAM, (100 + MORPHOLOGIES.index(family),))
+    sets_measured = measure(t, thrust, PERIOD_S, load_cell, rng, settle_periods=settle, periods=per, windows=sets)
+    plot_run(result, Path(out_dir) / f"fig5_{family}_run.png")
+    window = t >= settle * PERIOD_S
+    fold = result.signals.get("feather.flap_angle_rad")
+    ratios = np.array([m.thrust_ratio for m in sets_measured])
+    thrusts = np.array([m.mean_thrust_N for m in sets_measured])
+    return {
+        "family": family, "time_s": t, "thrust_N": thrust, "angle_rad": result["servo.angle_rad"],
+        "thrust_ratio": float(ratios.mean()), "thrust_ratio_sd": float(ratios.std(ddof=1)) if sets > 1 else 0.0,
+        "mean_thrust_N": float(thrusts.mean()), "mean_thrust_sd_N": float(thrusts.std(ddof=1)) if sets > 1 else 0.0,
+        "sets": [{"thrust_ratio": m.thrust_ratio, "mean_thrust_N": m.mean_thrust_N} for m in sets_measured],
+        "noise_free_thrust_ratio": result.summary.get("thrust_ratio"),
+        "peak_thrust_N": [float(thrust[window].min()), float(thrust[window].max())],
+        "max_fold_deg": None if fold is None or family == "plain" else float(np.degrees(fold[window].max())),
+        "sim_s": t_end,
+    }
+
+
+def sweep_task(task: Task, res: Resolution) -> dict:
+    plan = MeasurementPlan(load_cell=LoadCell(noise_sd_N=0.0), settle_periods=res.sweep_settle_periods,
+                           periods=res.sweep_periods, seed=res.seed)
+    row = _run_task(SceneObjective("kinematic"), task, plan, 60.0)
+    period = task.controller.stroke(60.0).period_s
+    return {"row": row, "sim_s": (res.sweep_settle_periods + res.sweep_periods) * period}
+
+
+def robot_task(family: str, controller: str, overrides: dict, res: Resolution) -> dict:
+    """Fig. 9: the two-feather robot on its rail with a controller found on the test bed."""
+    from cosim import run_scene
+
+    result = run_scene("robot", {**feather_overrides(family), **overrides, "master.periods": res.robot_periods,
+                                 "metrics.settle_periods": res.robot_settle_periods})
+    t = result.time
+    keep = np.searchsorted(t, np.arange(t[0], t[-1], ROBOT_SAMPLE_S))
+    s = result.summary
+    return {
+        "family": family, "controller": controller, "controller_overrides": overrides,
+        "time_s": t[keep], "position_m": result["robot.body_position_m"][keep],
+        "speed_m_s": result["robot.body_speed_m_s"][keep],
+        "mean_speed_m_s": s.get("mean_speed_m_s", math.nan), "thrust_ratio": s.get("thrust_ratio", math.nan),
+        "mean_thrust_N": s.get("mean_thrust_N", math.nan), "sim_s": float(t[-1] - t[0]),
+    }
+
+
+# ---- orchestration ----
+
+def _robot_controller(family: str, controller: str, results: dict) -> dict | str:
+    """The controller's overrides, or why it is missing."""
+    if controller == "baseline":
+        return stroke_overrides(symmetric_stroke(PERIOD_S))
+    study = results.get(f"study:{family}-{'max' if controller == 'best' else 'min'}", {})
+    if "best_overrides" not in study:
+        return f"skipped: its study failed ({study.get('error', 'no result')})"
+    return {k: v for k, v in study["best_overrides"].items() if k.startswith("controller.")}
+
+
+def run_experiments(res: Resolution, out_dir: Path, *, progress: bool = True) -> tuple[dict, dict]:
+    """Run every task; returns (results by task label, timing)."""
+    specs = study_specs(res)
+    geometries = [g for family in ("chordwise", "spanwise") for g in sweep_geometries(family, res.sweep_geometries)]
+    sweep_tasks = [Task(i, g, c) for i, (g, c) in enumerate((g, c) for g in geometries for c in res.sweep_controllers)]
+    workers = res.workers or os.cpu_count() or 1
+    started = time.perf_counter()
+    results: dict[str, dict] = {}
+    with tempfile.TemporaryDirectory(prefix="featherstar-paper-") as log_dir:
+        # Run order: the long studies first (the robot waits on them), short runs last to fill the gaps;
+        # the backlog is ours (the pool only ever holds one task per worker) so robot runs can jump it.
+        order = sorted(specs.values(), key=lambda s: (s.family == "plain", s.validate is False, -s.period_s))
+        backlog: list[tuple[str, Callable, tuple]] = [(f"study:{s.key}", study_task, (s, res, log_dir)) for s in order]
+        backlog += [(f"robot:{f}-baseline", robot_task, (f, "baseline", _robot_controller(f, "baseline", {}), res))
+                    for f in MORPHOLOGIES]
+        backlog += [(f"fig5:{f}", symmetric_task, (f, res, str(out_dir))) for f in MORPHOLOGIES]
+        backlog += [(f"sweep:{t.index}", sweep_task, (t, res)) for t in sweep_tasks]
+        total = len(backlog) + 2 * len(MORPHOLOGIES)
+        with futures.ProcessPoolExecutor(max_workers=workers) as pool, tqdm(
+            total=total, desc=f"paper ({res.name})", unit="task", file=sys.stderr, disable=not progress
+        ) as bar:
+            pending: dict[futures.Future, str] = {}
+            while backlog or pending:
+                while backlog and len(pending) < workers:
+                    label, fn, args = backlog.pop(0)
+                    pending[pool.submit(_guarded, fn, *args)] = label
+                done, _ = futures.wait(pending, return_when=futures.FIRST_COMPLETED)
+                for future in done:
+                    label = pending.pop(future)
+                    results[label] = future.result()
+                    bar.set_postfix_str(label, refresh=False)
+                    bar.update()
+                    kind, _, key = label.partition(":")
+                    if kind == "study" and key in (f"{f}-{m}" for f in MORPHOLOGIES for m in ("max", "min")):
+                        family, which = key.rsplit("-", 1)
+                        controller = "best" if which == "max" else "worst"
+                        overrides = _robot_controller(family, controller, results)
+                        robot_label = f"robot:{family}-{controller}"
+                        if isinstance(overrides, str):
+                            results[robot_label] = {"error": overrides, "wall_s": 0.0, "sim_s": 0.0}
+                            bar.update()
+                        else:
+                            backlog.insert(0, (robot_label, robot_task, (family, controller, overrides, res)))
+    timing = {
+        "wall_s": time.perf_counter() - started, "workers": workers, "tasks": len(results),
+        "task_wall_s": sum(r.get("wall_s", 0.0) for r in results.values()),
+        "simulated_s": sum(r.get("sim_s", 0.0) for r in results.values()),
+        "cpu_count": os.cpu_count(), "planned_simulated_s": planned_simulated_s(res),
+        "full_planned_simulated_s": planned_simulated_s(FULL),
+    }
+    return results, timing
+
+
+def planned_simulated_s(res: Resolution) -> float:
+    """Simulated seconds a resolution asks for (what the run time scales with)."""
+    total = 0.0
+    for spec in study_specs(res).values():
+        total += spec.iterations * (res.settle_periods + res.periods) * spec.period_s
+        if spec.validate:
+            total += 2 * (res.settle_periods + res.validation_repeats * res.validation_periods) * spec.period_s
+    total += len(MORPHOLOGIES) * (res.settle_periods + res.validation_repeats * res.validation_periods) * PERIOD_S
+    total += 3 * len(MORPHOLOGIES) * res.robot_periods * PERIOD_S
+    geometries = sum(len(sweep_geometries(f, res.sweep_geometries)) for f in ("chordwise", "spanwise"))
+    total += geometries * sum((res.sweep_settle_periods + res.sweep_periods) * c.stroke(60.0).period_s
+                              for c in res.sweep_controllers)
+    return total
+
+
+def collect(results: dict) -> dict:
+    """Regroup task results by figure (the shape of paper.json, less the claims)."""
+    sweep_rows = sorted((r["row"] for k, r in results.items() if k.startswith("sweep:") and "row" in r),
+                        key=lambda row: row["index"])
+    return {
+        "sweep": {"runs": sweep_rows, "table": tabulate(sweep_rows) if sweep_rows else []},
+        "symmetric": {k[5:]: r for k, r in results.items() if k.startswith("fig5:")},
+        "studies": {k[6:]: r for k, r in results.items() if k.startswith("study:")},
+        "robot": {k[6:]: r for k, r in results.items() if k.startswith("robot:")},
+        "failures": {k: r["error"] for k, r in results.items() if "error" in r},
+    }
+
+
+def _jsonable(value: Any) -> Any:
+    """Plain JSON types; traces (numpy arrays) stay out of paper.json: they are in the figures."""
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items() if not isinstance(v, np.ndarray)}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, (np.floating, np.integer)):
+        return value.item()
+    return value
+
+
+def generate_report(
+    out_dir: str | Path, *, quick: bool, progress: bool = True, resolution: Resolution | None = None
+) -> Path:
+    """Run the experiments at `resolution` (default QUICK or FULL) and write DIR/report.md, the
+    figures and DIR/paper.json; returns the report's path."""
+    from .paper_figures import draw_all
+    from .paper_report import claims, write_markdown
+
+    res = resolution or (QUICK if quick else FULL)
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    started = time.time()
+    results, timing = run_experiments(res, out_dir, progress=progress)
+    data = collect(results)
+    figures = draw_all(data, res, out_dir)
+    timing["total_wall_s"] = time.time() - started
+    table = claims(data)
+    payload = {"resolution": res.describe(), "timing": timing, "started_unix": started, "claims": table,
+               "figures": {k: p.name for k, p in figures.items()}, **data}
+    for study in payload["studies"].values():
+        study.get("summary", {}).pop("validation", None)  # per-set details: kept short
+    (out_dir / "paper.json").write_text(json.dumps(_json_safe(_jsonable(payload)), indent=1, allow_nan=False) + "\n")
+    return write_markdown(out_dir / "report.md", data, table, figures, res, timing)

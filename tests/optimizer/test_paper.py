@@ -1,0 +1,99 @@
+"""`featherstar paper`: the report's core at a tiny resolution, and its pieces without a master.
+
+The end-to-end test runs every experiment of the report (studies, symmetric-stroke runs, sweep, robot)
+through the real FMU master at the smallest resolution that still exercises each path, then checks
+that every figure is drawn and linked, that the claims table has every row, and that the numbers
+the table and paper.json report are finite.
+"""
+import argparse
+import dataclasses
+import json
+import math
+
+import pytest
+
+from optimizer.cli import register
+from optimizer.objective import master_available
+from optimizer.paper import FULL, QUICK, collect, generate_report, study_specs, sweep_geometries
+from optimizer.paper_figures import draw_all
+from optimizer.paper_report import claims, write_markdown
+from optimizer.sweep import Controller
+
+TINY = dataclasses.replace(
+    QUICK, name="test", sweep_geometries=1, sweep_controllers=(Controller(0.5, 1.0, 0.0),), sweep_settle_periods=0,
+    sweep_periods=1, settle_periods=0, periods=1, iterations=2, initial_points=2, fig7_iterations=2,
+    validation_repeats=2, validation_periods=1, robot_periods=1, robot_settle_periods=0, workers=2,
+)
+FIGURES = ["fig3_sweep.png", "fig5_symmetric.png", "fig5_plain_run.png", "fig5_chordwise_run.png",
+           "fig5_spanwise_run.png", "fig6_chordwise.png", "fig6_spanwise.png", "fig7_strokes.png",
+           "fig8_validation.png", "fig9_robot.png"]
+CLAIMS = ["plain_symmetric", "chordwise_symmetric", "spanwise_symmetric", "chordwise_optimized", "spanwise_optimized",
+          "plain_optimized", "useful_thrust", "flapped_best", "flapped_worst", "robot_chordwise", "robot_plain",
+          "robot_best_worst"]
+
+
+@pytest.fixture(scope="module")
+def report(tmp_path_factory):
+    if not master_available():
+        pytest.skip("cosim.run_scene (the FMU master) is not available")
+    return generate_report(tmp_path_factory.mktemp("paper"), quick=True, progress=False, resolution=TINY)
+
+
+def test_every_figure_is_drawn_and_linked(report):
+    text = report.read_text()
+    for name in FIGURES:
+        assert (report.parent / name).stat().st_size > 4_000, name
+        assert f"({name})" in text, f"{name} is not linked from report.md"
+    assert "## How to read this" in text and "Run time:" in text and "## Resolution" in text
+
+
+def test_the_table_holds_every_claim_with_a_finite_simulated_value(report):
+    data = json.loads((report.parent / "paper.json").read_text())
+    assert data["failures"] == {}
+    assert [row["id"] for row in data["claims"]] == CLAIMS
+    text = report.read_text()
+    for i, row in enumerate(data["claims"], 1):
+        assert isinstance(row["simulated"], float) and math.isfinite(row["simulated"]), row
+        assert row["agrees"] in (True, False)
+        assert f"| {i} | {row['claim']} |" in text
+
+
+def test_paper_json_numbers_are_finite(report):
+    data = json.loads((report.parent / "paper.json").read_text())
+    numbers = [data["timing"]["total_wall_s"], data["timing"]["simulated_s"]]
+    numbers += [run[key] for run in data["symmetric"].values() for key in ("thrust_ratio", "mean_thrust_N")]
+    numbers += [study["estimated_thrust_ratio"] for study in data["studies"].values()]
+    numbers += [study["summary"][key] for study in data["studies"].values() if "summary" in study
+                for key in ("thrust_ratio", "baseline_thrust_ratio", "mean_thrust_N")]
+    numbers += [run["mean_speed_m_s"] for run in data["robot"].values()]
+    numbers += [row["thrust_ratio"] for row in data["sweep"]["table"]]
+    assert len(data["studies"]) == 8 and len(data["robot"]) == 9 and len(data["sweep"]["table"]) == 2
+    assert all(isinstance(x, float) and math.isfinite(x) for x in numbers), numbers
+
+
+def test_failed_experiments_still_give_a_report(tmp_path):
+    """Every task failed: the figures say so, the table says n/a, the failures are listed."""
+    data = collect({"study:chordwise-max": {"error": "StepError: boom"}, "fig5:plain": {"error": "x"}})
+    table = claims(data)
+    assert [row["id"] for row in table] == CLAIMS and all(row["agrees"] is None for row in table)
+    figures = draw_all(data, QUICK, tmp_path)
+    timing = {"total_wall_s": 1.0, "workers": 1, "cpu_count": 1, "tasks": 2, "simulated_s": 0.0,
+              "planned_simulated_s": 600.0, "full_planned_simulated_s": 12000.0}
+    text = write_markdown(tmp_path / "report.md", data, table, figures, QUICK, timing).read_text()
+    assert "## Failures" in text and "StepError: boom" in text and "n/a" in text
+
+
+def test_resolutions_plan_the_paper_experiments():
+    assert [round(g.ratio, 2) for g in sweep_geometries("chordwise", 4)] == [1.5, 5.5, 7.5, 9.5, 1.0]
+    assert len(sweep_geometries("spanwise", None)) == 14 and sweep_geometries("spanwise", None)[-1].reference
+    quick, full = study_specs(QUICK), study_specs(FULL)
+    assert sorted(quick) == sorted(["plain-max", "plain-min", "chordwise-max", "chordwise-min", "spanwise-max",
+                                    "spanwise-min", "chordwise-7.5-3s", "spanwise-2-3s"])
+    assert len(full) == 6 + 2 * 3 * 2 - 2  # Fig. 7's WR 7.5 / LR 2 at 1.5 s are the Fig. 6 studies
+
+
+def test_cli_registers_paper():
+    parser = argparse.ArgumentParser()
+    register(parser.add_subparsers(dest="command"))
+    args = parser.parse_args(["paper", "--quick", "--out", "somewhere", "--workers", "1"])
+    assert args.func.__name__ == "_paper_command" and args.quick and args.workers == 1
