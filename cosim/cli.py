@@ -10,7 +10,7 @@ from typing import Sequence
 
 from fmu_src.errors import FeatherstarError
 
-PLUGINS = ("fmu_src.cli", "optimizer.cli", "hil.cli")
+PLUGINS = ("fmu_src.cli", "optimizer.cli", "hil.cli", "cosim.dashboard")
 
 
 def _parse_set(items: Sequence[str]) -> dict[str, str]:

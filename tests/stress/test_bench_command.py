@@ -1,0 +1,56 @@
+"""`featherstar bench`: finds bench/ from the current directory or says clearly that it cannot,
+runs every script there and writes one JSON and one markdown report (plumbing only: the real
+benchmarks take minutes, `featherstar bench --quick` is timed by hand and in docs/stability.md)."""
+from __future__ import annotations
+
+import json
+import textwrap
+
+import pytest
+
+from cosim.cli import main
+from cosim.dashboard import BenchError, find_bench_dir, run_dashboard
+
+
+def test_bench_is_a_featherstar_command(capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main(["bench", "--help"])
+    assert exit_.value.code == 0
+    assert "--quick" in capsys.readouterr().out
+
+
+def test_outside_a_checkout_it_says_where_it_looked(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(BenchError, match="no bench/ folder"):
+        find_bench_dir()
+    assert main(["bench", "--quick"]) == 2
+    err = capsys.readouterr().err
+    assert "featherstar: error: no bench/ folder" in err and str(tmp_path) in err
+
+
+def test_runs_every_script_and_writes_one_report(tmp_path, monkeypatch):
+    checkout = tmp_path / "checkout"
+    bench = checkout / "bench"
+    bench.mkdir(parents=True)
+    (checkout / "pyproject.toml").write_text("[project]\nname = 'x'\n")
+    script = textwrap.dedent("""
+        import argparse, json, pathlib
+        p = argparse.ArgumentParser()
+        p.add_argument("--quick", action="store_true")
+        p.add_argument("--out", type=pathlib.Path)
+        a = p.parse_args()
+        (a.out / "{name}.json").write_text(json.dumps({{"quick": a.quick, "value": 42}}))
+    """)
+    for name in ("alpha", "beta"):
+        (bench / f"{name}.py").write_text(script.format(name=name))
+    (bench / "broken.py").write_text("raise SystemExit(3)\n")
+    (bench / "dashboard.py").write_text("raise SystemExit('the dashboard must not run itself')\n")
+    monkeypatch.chdir(bench)  # found from inside bench/ too
+    report = run_dashboard(quick=True, out=tmp_path / "out", measure=False, log=lambda msg: None)
+    assert set(report["benches"]) == {"alpha", "beta", "broken"}
+    assert report["benches"]["alpha"]["outputs"] == ["alpha.json"]
+    assert report["benches"]["broken"]["returncode"] == 3
+    saved = json.loads((tmp_path / "out" / "dashboard.json").read_text())
+    assert saved["results"]["beta"] == {"quick": True, "value": 42}
+    md = (tmp_path / "out" / "dashboard.md").read_text()
+    assert "| alpha | ok |" in md and "| broken | FAILED (rc 3" in md
