@@ -87,3 +87,17 @@ def speed_metrics(t: np.ndarray, a: float, b: float, position: np.ndarray | None
         return {"mean_speed_m_s": float((x1 - x0) / (b - a)), "displacement_m": float(position[-1] - position[0])}
     tt, vv = _clip(t, speed, a, b)
     return {"mean_speed_m_s": float(np.trapezoid(vv, tt) / (b - a))}
+
+
+def scene_metrics(metrics_spec: Any, period: float | None, t: np.ndarray,
+                  signals: dict[str, np.ndarray]) -> dict[str, Any]:
+    """The paper's metrics of a run as the scene's [metrics] table asks for them: the window of
+    whole periods after settling, thrust (Eq. 2, Eq. 3) and the robot's speed."""
+    a, b, k = window(float(t[-1]), period, metrics_spec.settle_periods, float(t[0]))
+    out: dict[str, Any] = {"window_s": [a, b], "periods_used": k}
+    if metrics_spec.thrust:
+        out.update(thrust_metrics(t, signals[metrics_spec.thrust], a, b, period, k))
+    if metrics_spec.position or metrics_spec.speed:
+        out.update(speed_metrics(t, a, b, signals.get(metrics_spec.position) if metrics_spec.position else None,
+                                 signals.get(metrics_spec.speed) if metrics_spec.speed else None))
+    return out

@@ -113,7 +113,7 @@ def run_monolithic(
     integrate through `casadi.external`. With method="adams" CVODES then uses functional
     iteration (no Jacobian); otherwise finite-difference Jacobians. The default (False) is plain
     CasADi: CVODES on the expression graph, evaluated by CasADi's virtual machine."""
-    from .metrics import speed_metrics, thrust_metrics, window
+    from .metrics import scene_metrics
     from .run import RunResult
 
     wall0 = time.perf_counter()
@@ -160,13 +160,7 @@ def run_monolithic(
                                "method": method, "compiled": compiled,
                                "stats": {"integrate_s": integrate_s, "compile_s": compile_s,
                                          "states": int(x.numel())}}
-    a, b, k = window(float(grid[-1]), plan.period_s, sc.metrics.settle_periods)
-    summary.update(window_s=[a, b], periods_used=k)
-    if sc.metrics.thrust:
-        summary.update(thrust_metrics(grid, signals[sc.metrics.thrust], a, b, plan.period_s, k))
-    if sc.metrics.position or sc.metrics.speed:
-        summary.update(speed_metrics(grid, a, b, signals.get(sc.metrics.position) if sc.metrics.position else None,
-                                     signals.get(sc.metrics.speed) if sc.metrics.speed else None))
+    summary.update(scene_metrics(sc.metrics, plan.period_s, grid, signals))
     summary["wall_time_s"] = time.perf_counter() - wall0 - compile_s  # compilation is cached: reported apart
     return RunResult(sc, grid, signals, units, summary, {"instantiated": list(plan.instantiate)})
 

@@ -17,7 +17,7 @@ import numpy as np
 from .errors import SceneError, StepError
 from .graph import Plan, plan as make_plan
 from .master import RunContext, make_context, run_strong, run_weak
-from .metrics import speed_metrics, thrust_metrics, window
+from .metrics import scene_metrics
 from .scene import Scene, load_scene
 from .units import ModelUnit, PyUnit, Unit
 
@@ -172,13 +172,7 @@ def _result(plan: Plan, ctx: RunContext, wall: float, overrides: Mapping[str, An
     else:
         summary.update(step_s=sc.master.step_s, adaptive=sc.master.adaptive)
     if error is None and n > 1:
-        a, b, k = window(float(t[-1]), plan.period_s, sc.metrics.settle_periods, float(t[0]))
-        summary.update(window_s=[a, b], periods_used=k)
-        if sc.metrics.thrust:
-            summary.update(thrust_metrics(t, signals[sc.metrics.thrust], a, b, plan.period_s, k))
-        if sc.metrics.position or sc.metrics.speed:
-            summary.update(speed_metrics(t, a, b, signals.get(sc.metrics.position) if sc.metrics.position else None,
-                                         signals.get(sc.metrics.speed) if sc.metrics.speed else None))
+        summary.update(scene_metrics(sc.metrics, plan.period_s, t, signals))
     if error is not None:
         summary.update(error=str(error), failed_block=error.block, failed_at_s=error.t_s)
     info = {
