@@ -21,6 +21,7 @@ from typing import Iterable, Sequence
 
 from .blocks import ResolvedBlock, is_rollback_capable, resolve
 from .errors import SceneError
+from .guards import step_problems
 from .scene import PortRef, Scene
 
 DIMENSIONLESS = {"", "1", "-"}
@@ -222,6 +223,7 @@ def plan(scene: Scene, outputs: Sequence[str] | None = None) -> Plan:
                 "re-evaluated for trial inputs (hardware or a block without can_iterate); break the loop "
                 "with a block whose output does not depend directly on its input (a filter or a delay)")
     problems.extend(_check_coupling(p))
+    problems.extend(step_problems(p))
     master = scene.master
     if master.t_end_s > 0:
         p.t_end_s = master.t_end_s

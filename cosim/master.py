@@ -37,6 +37,7 @@ import numpy as np
 from ._cvode import CVodeError, CVodeIntegrator
 from .errors import StepError
 from .graph import Plan, _tarjan
+from .guards import PassiveEnergyGuard, passive_energy_guards, watched_outputs
 from .scene import PortRef
 from .units import Unit
 
@@ -290,6 +291,7 @@ class RunContext:
     record_refs: list[tuple[ctypes.Array, int]] = field(default_factory=list)
     loop_solvers: list[LoopSolver] = field(default_factory=list)
     stats: dict[str, Any] = field(default_factory=dict)
+    guards: list[PassiveEnergyGuard] = field(default_factory=list)
 
     def loop_block(self, solver: LoopSolver) -> str:
         return ",".join(dict.fromkeys(u.name for u, _, _, _ in solver.tear))
@@ -317,11 +319,15 @@ def make_context(plan: Plan, units: dict[str, Unit]) -> RunContext:
         c = plan.canonical(ref)
         u = units[c.block]
         ctx.record_refs.append((u.outbuf, u.output_names.index(c.port)))
+    # judged from one stroke period in (a tenth of the run without a stroke): see PassiveEnergyGuard
+    ctx.guards = passive_energy_guards(units, plan.scene.master.passive_energy_factor,
+                                       plan.period_s or 0.1 * plan.t_end_s)
     return ctx
 
 
 def _requested_out_nodes(ctx: RunContext) -> set[tuple[str, int]]:
-    out = set()
+    """The outputs evaluated at every recorded point: the recorded signals and what the guards read."""
+    out = watched_outputs(ctx.guards)
     for ref in ctx.plan.requested:
         c = ctx.plan.canonical(ref)
         out.add((c.block, ctx.units[c.block].output_names.index(c.port)))
@@ -342,6 +348,13 @@ def _output_checker(ctx: RunContext, units: Sequence[Unit]) -> Callable[[float],
                                         cause="the block produced NaN/inf: its model blew up, divided by zero, "
                                         "or got invalid parameters or inputs")
     return check
+
+
+def _record(ctx: RunContext, t: float) -> None:
+    """Record a checked point, then let the guards judge it (the point that trips one is kept)."""
+    ctx.record(t)
+    for guard in ctx.guards:
+        guard(t)
 
 
 # --------------------------------------------------------------------------------------------
@@ -606,7 +619,7 @@ def run_strong(ctx: RunContext, t0: float, t_end: float) -> None:
         for op in rec_ops:
             op()
         check(t)
-        ctx.record(t)
+        _record(ctx, t)
         if len(ctx.rows) % 256 == 0:
             ctx.tick(t)
 
@@ -703,7 +716,7 @@ def run_weak(ctx: RunContext, t0: float, t_end: float) -> None:
     check = _output_checker(ctx, units)
     consistent(t0)
     check(t0)
-    ctx.record(t0)
+    _record(ctx, t0)
     h = m.step_s
     t = t0
     scale = {u.name: [abs(u.inbuf[i]) for i in range(len(u.input_names))] for u in stepped}
@@ -785,7 +798,7 @@ def run_weak(ctx: RunContext, t0: float, t_end: float) -> None:
         t = t + h_try
         n_steps += 1
         check(t)
-        ctx.record(t)
+        _record(ctx, t)
         if n_steps % 256 == 0:
             ctx.tick(t)
     ctx.stats.update({"macro_steps": n_steps, "rejected_steps": n_rejected})

@@ -177,6 +177,11 @@ class MasterSpec:
                        (no export; for development and for FMU-free checks).
     realtime           weak coupling: pace macro steps on the wall clock (hardware in the loop);
                        steps that start late are counted as deadline misses.
+    check_steps        refuse a recording grid or fixed macro step too coarse for the stroke, and a
+                       macro step too long for a feedback loop (cosim.guards); false only to study
+                       the sampling or coupling error itself.
+    passive_energy_factor  stop when a passive block (a feather) gains more than this multiple of
+                       the work its ports put in (cosim.guards); 0 = no check.
     """
 
     coupling: str = "strong"
@@ -198,6 +203,8 @@ class MasterSpec:
     algebraic_loops: str = "iterate"
     backend: str = "fmu"
     realtime: bool = False
+    check_steps: bool = True
+    passive_energy_factor: float = 2.0
 
     def check(self) -> list[str]:
         problems = []
@@ -214,7 +221,7 @@ class MasterSpec:
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 problems.append(f"master.{name} = {v!r} must be > 0")
-        for name in ("t_end_s", "periods", "max_step_s"):
+        for name in ("t_end_s", "periods", "max_step_s", "passive_energy_factor"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
                 problems.append(f"master.{name} = {v!r} must be >= 0")

@@ -6,9 +6,9 @@ an H too coarse for the stroke (it samples a 0.25 s ramp a few times, or steps o
 periods) or for the servo <-> feather feedback loop (Jacobi goes unstable at ~8 ms on the test bed,
 bench/stability_map.py) must not come back as numbers.
 
-The master has no such guard yet: those cases are strict xfails (they run, return wrong thrust
-ratios and energies, and flip to XPASS, failing the suite, as soon as a guard raises a clear
-error or the result becomes right). docs/stability.md lists them with the measured edges.
+Before the guards (cosim/guards.py) those runs returned wrong thrust ratios and energies without
+a word (docs/stability.md lists what came back); now the scene check refuses them, naming the
+limit, and the same runs with the check lifted show why.
 """
 from __future__ import annotations
 
@@ -17,16 +17,13 @@ import functools
 import numpy as np
 import pytest
 
+from cosim.errors import SceneError
 from fmu_src.errors import FeatherstarError
 from stress_support import THRUST, assert_clear_error, metrics_of, physical_problems, run_case
 
 pytestmark = pytest.mark.stress
 
 PLAIN = {"feather.morphology": "plain", "master.periods": 5, "metrics.settle_periods": 3}
-NO_GUARD = pytest.mark.xfail(
-    strict=True, raises=AssertionError,
-    reason="the master has no guard for macro steps too coarse for the stroke or the coupling loop: it "
-           "returns silently wrong numbers instead of a clear error (docs/stability.md)")
 
 
 @functools.lru_cache(maxsize=None)
@@ -69,21 +66,56 @@ def test_tiny_macro_step_reproduces_strong_coupling_pointwise(scene, coupling):
 
 @pytest.mark.parametrize("scene,coupling,step_s", [
     ("kinematic", "jacobi", 1e-2),
-    ("kinematic", "gauss-seidel", 3e-2),
+    ("kinematic", "gauss-seidel", 1e-2),
     ("testbed", "jacobi", 2e-3),
     ("testbed", "gauss-seidel", 3e-3),
-    pytest.param("kinematic", "jacobi", 0.05, marks=NO_GUARD),        # 5 samples of a 0.25 s ramp
-    pytest.param("kinematic", "gauss-seidel", 0.25, marks=NO_GUARD),  # H = the ramp: the feather never moves
-    pytest.param("kinematic", "jacobi", 2.0, marks=NO_GUARD),         # H > the period: TR = inf
-    pytest.param("testbed", "jacobi", 1e-2, marks=NO_GUARD),          # servo <-> feather loop unstable
-    pytest.param("testbed", "gauss-seidel", 2.0, marks=NO_GUARD),
 ])
-def test_macro_step_is_accurate_or_refused(scene, coupling, step_s):
+def test_macro_step_inside_the_limits_is_accurate(scene, coupling, step_s):
     _accurate_or_clear_error(scene, {"master.coupling": coupling, "master.step_s": step_s})
 
 
-@pytest.mark.parametrize("interval_s", [0.05, pytest.param(0.5, marks=NO_GUARD)])
-def test_strong_coupling_recording_grid_is_accurate_or_refused(interval_s):
-    """Strong coupling has no macro step, but its metrics are integrals over the recorded grid: a
-    grid of 0.5 s samples a 1.5 s stroke three times (TR 0.03 instead of 0.99)."""
-    _accurate_or_clear_error("kinematic", {"master.output_interval_s": interval_s})
+COARSE = [
+    # (scene, coupling, step, the rule that refuses it, what the run returns with the check lifted)
+    ("kinematic", "jacobi", 0.05, "samples the stroke's shortest ramp", "5 samples of a 0.25 s ramp"),
+    ("kinematic", "gauss-seidel", 0.25, "samples the stroke's shortest ramp", "H = the ramp: the feather never moves"),
+    ("kinematic", "jacobi", 2.0, "samples the stroke's shortest ramp", "H > the period: TR = inf"),
+    ("testbed", "jacobi", 1e-2, "fastest time constant on the feedback loop", "servo <-> feather loop unstable"),
+    ("testbed", "gauss-seidel", 2e-2, "fastest time constant on the feedback loop", "past 2x the servo's 5 ms filter"),
+    ("testbed", "gauss-seidel", 2.0, "samples the stroke's shortest ramp", "TR = inf"),
+]
+
+
+@pytest.mark.parametrize("scene,coupling,step_s,rule,what", COARSE, ids=[f"{c[0]}-{c[1]}-{c[2]:g}s" for c in COARSE])
+def test_too_coarse_macro_step_is_refused_before_running(scene, coupling, step_s, rule, what):
+    with pytest.raises(SceneError, match=rule) as info:
+        run_case(scene, {**PLAIN, "master.coupling": coupling, "master.step_s": step_s})
+    assert f"master.step_s = {step_s:g} s" in str(info.value)
+
+
+@pytest.mark.parametrize("scene,coupling,step_s", [("kinematic", "jacobi", 0.05), ("testbed", "jacobi", 1e-2)])
+def test_the_refused_steps_are_wrong_when_the_check_is_lifted(scene, coupling, step_s):
+    """Why they are refused: the same runs with master.check_steps = false (and the energy guard off)
+    come back wrong (test bed: TR 1.6 and 40x the energy; kinematic: mean thrust 27 % off)."""
+    result = run_case(scene, {**PLAIN, "master.coupling": coupling, "master.step_s": step_s,
+                              "master.check_steps": False, "master.passive_energy_factor": 0.0})
+    problems = physical_problems(result, scene, "plain") + _accuracy_problems(result, _reference(scene), scene)
+    assert problems
+
+
+def test_the_energy_guard_stops_an_unstable_coupling_the_step_check_lets_through():
+    """With the step check lifted, Jacobi at 10 ms on the test bed pumps energy into the feather
+    (peak 0.7 J against 0.017 J); the passive-energy guard stops it within a few periods."""
+    with pytest.raises(FeatherstarError, match="mechanical energy gained") as info:
+        run_case("testbed", {**PLAIN, "master.coupling": "jacobi", "master.step_s": 1e-2, "master.check_steps": False})
+    assert_clear_error(info.value, block="feather")
+
+
+def test_strong_coupling_recording_grid_inside_the_limit_is_accurate():
+    """Strong coupling has no macro step, but its metrics are integrals over the recorded grid."""
+    _accurate_or_clear_error("kinematic", {"master.output_interval_s": 0.01})
+
+
+def test_too_coarse_recording_grid_is_refused():
+    """A 0.5 s grid samples the 1.5 s stroke three times (TR 0.03 instead of 0.99 when let through)."""
+    with pytest.raises(SceneError, match=r"master.output_interval_s = 0.5 s samples the stroke's shortest ramp"):
+        run_case("kinematic", {**PLAIN, "master.output_interval_s": 0.5})
