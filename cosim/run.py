@@ -16,7 +16,9 @@ import numpy as np
 
 from .errors import SceneError, StepError
 from .graph import Plan, plan as make_plan
-from .master import RunContext, make_context, run_strong, run_weak
+from .master import RunContext, make_context
+from .strong import run_strong
+from .weak import run_weak
 from .metrics import scene_metrics
 from .scene import Scene, load_scene
 from .units import ModelUnit, PyUnit, Unit

@@ -25,6 +25,8 @@ from skopt import Optimizer
 from skopt.space import Real
 from threadpoolctl import threadpool_limits
 
+from fmu_src.errors import FeatherstarError
+
 from .acquisition import DEFAULT_EXPLORATION_RATIO, Proposal, expected_improvement_plus, incumbent, noise_sd
 from .errors import OptimizerError
 from .evaluation import ITERATION_STREAM, MeasurementPlan, evaluate
@@ -230,7 +232,14 @@ def optimize(
         started = time.perf_counter()
         point = optimizer.ask()
         asked = time.perf_counter()
-        result = evaluate(objective, space.overrides(point), space.period_s, plan, ITERATION_STREAM, (index,))
+        try:
+            result = evaluate(objective, space.overrides(point), space.period_s, plan, ITERATION_STREAM, (index,))
+        except FeatherstarError as exc:  # e.g. the master's energy guard refused this stroke
+            raise OptimizerError(
+                f"evaluation {index} at {point} could not be simulated: {exc}. The {index} evaluations before it "
+                f"are in {log_path}; --resume would ask this point again, so narrow the search space (or fix the "
+                "scene) first"
+            ) from exc
         evaluated = time.perf_counter()
         if not math.isfinite(result.thrust_ratio):
             raise OptimizerError(

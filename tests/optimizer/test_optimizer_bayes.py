@@ -105,3 +105,23 @@ def test_ask_tell_rejects_bad_input():
         optimizer.tell({**point, "t_up": 0.1}, 1.0)
     with pytest.raises(OptimizerError, match="n_initial_points"):
         optimize(FEATHER, SPACE, "unused.jsonl", iterations=2)
+
+
+def test_a_stroke_the_simulation_refuses_stops_the_study_naming_it(tmp_path):
+    """A StepError inside an evaluation (e.g. the master's energy guard) ends the study with the
+    evaluation and its point named; the evaluations before it stay in the log."""
+    from cosim.errors import StepError
+
+    calls = []
+
+    def refusing(overrides, duration_s):
+        calls.append(overrides)
+        if len(calls) == 4:
+            raise StepError("feather", 1.5, "mechanical energy gained 0.3 J, more than 2x the 0.1 J its ports put in")
+        return FEATHER(overrides, duration_s)
+
+    path = tmp_path / "log.jsonl"
+    with pytest.raises(OptimizerError, match=r"evaluation 3 at \{.*could not be simulated: block 'feather'") as info:
+        optimize(refusing, SPACE, path, iterations=SHORT_ITERATIONS, plan=PLAN)
+    assert str(path) in str(info.value)
+    assert len(logged_evaluations(path)) == 3

@@ -1,0 +1,168 @@
+"""Weak coupling: Jacobi or Gauss-Seidel macro steps with inputs held (cosim.master)."""
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+
+from ._cvode import CVodeError
+from .errors import StepError
+from .master import RunContext, check_all_rows, output_checker, record_point, watched_out_nodes
+from .schedule import flow_order, input_sources, setter_op, topo_schedule
+from .strong import OdeGroup
+from .units import Unit
+
+
+class MeStepper:
+    """Steps one Model Exchange unit as a co-simulation unit with its own CVODE (inputs held)."""
+
+    def __init__(self, ctx: RunContext, unit: Unit, t0: float, method: str, rtol: float, atol: float) -> None:
+        self.unit = unit
+        self.group = OdeGroup(ctx, [unit], [], t0, method=method, rtol=rtol, atol=atol)
+
+    def do_step(self, t: float, h: float) -> None:
+        g = self.group
+        g.cv.reinit(t)  # the inputs jumped at the communication point
+        try:
+            g.integrate(t + h, np.empty(0), lambda _t: None)
+        except CVodeError as exc:
+            raise g.diagnose(exc) from None
+        self.unit.set_time(t + h)
+        if g.stateful:
+            self.unit.set_states(g.cv.y_address)
+
+    def get_state(self) -> Any:
+        return (self.group.cv.t, list(self.group.cv.y), self.unit.get_state())
+
+    def set_state(self, state: Any) -> None:
+        t, y, inner = state
+        self.unit.set_state(inner)
+        for i, v in enumerate(y):
+            self.group.cv.y[i] = v
+        self.group.cv.t = t
+        if self.group.stateful:
+            self.unit.set_time(t)
+            self.unit.set_states(self.group.cv.y_address)
+
+    def free_state(self, state: Any) -> None:
+        self.unit.free_state(state[2])
+
+
+def run_weak(ctx: RunContext, t0: float, t_end: float) -> None:
+    plan = ctx.plan
+    m = plan.scene.master
+    units = list(ctx.units.values())
+    steppers: dict[str, Any] = {}
+    for u in units:
+        if u.memoryless:
+            continue
+        steppers[u.name] = MeStepper(ctx, u, t0, m.method, m.rtol, m.atol) if u.continuous else u
+    sched = topo_schedule(ctx, units, watched_out_nodes(ctx))
+    # Gauss–Seidel order: signal flow, sources first
+    flow = flow_order(ctx, units)
+    per_unit_set = {u.name: setter_op(ctx, u, list(range(len(u.input_names))), input_sources(ctx, u))
+                    for u in units if u.input_names}
+    per_unit_get = {u.name: u.output_getter(list(range(len(u.output_names)))) for u in units if u.output_names}
+    stepped = [u for u in flow if u.name in steppers]
+    memoryless = [u for u in units if u.memoryless]
+
+    def consistent(t: float) -> None:
+        ctx.t = t
+        for u in memoryless:
+            u.set_time(t)
+        for op in sched:
+            op()
+
+    check = output_checker(ctx, units)
+    consistent(t0)
+    check(t0)
+    record_point(ctx, t0)
+    h = m.step_s
+    t = t0
+    scale = {u.name: [abs(u.inbuf[i]) for i in range(len(u.input_names))] for u in stepped}
+    n_steps = n_rejected = 0
+    eps = 1e-12 * max(1.0, abs(t_end))
+    gs = m.coupling == "gauss-seidel"
+    wall_start = time.perf_counter()
+    misses, worst_lateness = 0, 0.0
+    while t < t_end - eps:
+        if m.realtime:
+            # Hardware in the loop: a step may not start before its wall-clock time; one that
+            # starts more than a step late missed its deadline (the device saw a stale command).
+            lateness = time.perf_counter() - wall_start - (t - t0)
+            if lateness < 0:
+                time.sleep(-lateness)
+            elif lateness > h:
+                misses += 1
+            worst_lateness = max(worst_lateness, lateness)
+        h_try = min(h, t_end - t)
+        if t + h_try > t_end - 1e-9 * h_try:
+            h_try = t_end - t
+        saved = {n: s.get_state() for n, s in steppers.items()} if m.adaptive else None
+        used: dict[str, list[float]] = {}
+        try:
+            if gs:
+                for u in flow:
+                    if u.memoryless:
+                        ctx.t = t + h_try
+                        u.set_time(t + h_try)
+                        if u.name in per_unit_set:
+                            per_unit_set[u.name]()
+                        if u.name in per_unit_get:
+                            per_unit_get[u.name]()
+                        continue
+                    ctx.t = t
+                    if u.name in per_unit_set:
+                        per_unit_set[u.name]()
+                    used[u.name] = list(u.inbuf)[: len(u.input_names)]
+                    steppers[u.name].do_step(t, h_try)
+                    if u.name in per_unit_get:
+                        per_unit_get[u.name]()
+            else:
+                for u in stepped:
+                    used[u.name] = list(u.inbuf)[: len(u.input_names)]
+                ctx.t = t
+                for u in stepped:
+                    steppers[u.name].do_step(t, h_try)
+            consistent(t + h_try)
+        except StepError as exc:
+            if m.adaptive and saved is not None and h_try > m.min_step_s and "discard" in str(exc):
+                for n, s in steppers.items():
+                    s.set_state(saved[n])
+                consistent(t)
+                h = h_try * 0.25
+                n_rejected += 1
+                continue
+            raise
+        if m.adaptive:
+            err = 0.0
+            for u in stepped:
+                sc = scale[u.name]
+                for i, old in enumerate(used[u.name]):
+                    new = u.inbuf[i]
+                    sc[i] = max(sc[i], abs(new))
+                    e = 0.5 * abs(new - old) / (m.atol + m.macro_rtol * sc[i])
+                    if e > err:
+                        err = e
+            if err > 1.0 and h_try > m.min_step_s * 1.0001:
+                for n, s in steppers.items():
+                    s.set_state(saved[n])
+                    s.free_state(saved[n])
+                consistent(t)
+                h = max(m.min_step_s, h_try * max(0.2, 0.9 / err))
+                n_rejected += 1
+                continue
+            for n, s in steppers.items():
+                s.free_state(saved[n])
+            h = min(m.max_macro_step_s, h_try * min(2.0, 0.9 / max(err, 1e-12)))
+        t = t + h_try
+        n_steps += 1
+        check(t)
+        record_point(ctx, t)
+        if n_steps % 256 == 0:
+            ctx.tick(t)
+    ctx.stats.update({"macro_steps": n_steps, "rejected_steps": n_rejected})
+    if m.realtime:
+        ctx.stats.update({"deadline_misses": misses, "worst_lateness_s": worst_lateness})
+    check_all_rows(ctx)
