@@ -37,7 +37,7 @@ LOOP_STEP_PER_TIME_CONSTANT = {"jacobi": 1.0, "gauss-seidel": 2.0}
 #: A passive block reports this output; its power ports are `<x>_torque_Nm` outputs paired with
 #: `<x>_rate_rad_s` inputs (the actuator's torque and the rate it imposes).
 ENERGY_OUTPUT = "mechanical_energy_J"
-POWER_PAIRS = (("_torque_Nm", "_rate_rad_s"),)
+TORQUE_SUFFIX, RATE_SUFFIX = "_torque_Nm", "_rate_rad_s"
 #: Gains below this are not judged (the feathers here hold 0.01-0.07 J).
 ENERGY_FLOOR_J = 1e-6
 
@@ -49,7 +49,6 @@ def _shortest_ramp(plan: "Plan") -> tuple[float, str] | None:
         stroke = getattr(rb.obj, "stroke", None)
         if rb.spec.kind == "stroke" and stroke is not None:
             ramps += [(stroke.t_up_s, f"{name}.t_up_s"), (stroke.t_down_s, f"{name}.t_down_s")]
-    ramps = [r for r in ramps if r[0] > 0]
     return min(ramps) if ramps else None
 
 
@@ -71,7 +70,7 @@ def _fastest_time_constant(plan: "Plan", blocks: Sequence[str]) -> tuple[float, 
     found = []
     for b in blocks:
         rb = plan.blocks[b]
-        values = {p.name: p.default for p in rb.model.parameters} if rb.model is not None else {}
+        values = rb.model.default_parameters() if rb.model is not None else {}
         values.update(rb.parameters)
         found += [(v, f"{b}.{k}") for k, v in values.items() if k.endswith("time_constant_s") and v > 0]
     return min(found) if found else None
@@ -170,13 +169,9 @@ def passive_energy_guards(units: dict[str, "Unit"], factor: float, judge_from_s:
     for u in units.values():
         if ENERGY_OUTPUT not in u.output_names:
             continue
-        pairs = []
-        for torque_suffix, rate_suffix in POWER_PAIRS:
-            for k, out in enumerate(u.output_names):
-                if out.endswith(torque_suffix):
-                    rate = out[: -len(torque_suffix)] + rate_suffix
-                    if rate in u.input_names:
-                        pairs.append((k, u.input_names.index(rate)))
+        rates = [(k, out[: -len(TORQUE_SUFFIX)] + RATE_SUFFIX) for k, out in enumerate(u.output_names)
+                 if out.endswith(TORQUE_SUFFIX)]
+        pairs = [(k, u.input_names.index(rate)) for k, rate in rates if rate in u.input_names]
         if pairs:
             guards.append(PassiveEnergyGuard(u, u.output_names.index(ENERGY_OUTPUT), pairs, factor, judge_from_s))
     return guards

@@ -60,9 +60,11 @@ class RunContext:
         return ",".join(dict.fromkeys(u.name for u, _, _, _ in solver.tear))
 
     def record(self, t: float) -> None:
-        row = [buf[k] for buf, k in self.record_refs]
+        """Record a checked point, then let the guards judge it (the point that trips one is kept)."""
         self.times.append(t)
-        self.rows.append(row)
+        self.rows.append([buf[k] for buf, k in self.record_refs])
+        for guard in self.guards:
+            guard(t)
 
     def tick(self, t: float) -> None:
         if self.progress is not None:
@@ -111,13 +113,6 @@ def output_checker(ctx: RunContext, units: Sequence[Unit]) -> Callable[[float], 
                                         cause="the block produced NaN/inf: its model blew up, divided by zero, "
                                         "or got invalid parameters or inputs")
     return check
-
-
-def record_point(ctx: RunContext, t: float) -> None:
-    """Record a checked point, then let the guards judge it (the point that trips one is kept)."""
-    ctx.record(t)
-    for guard in ctx.guards:
-        guard(t)
 
 
 def check_all_rows(ctx: RunContext) -> None:

@@ -11,7 +11,7 @@ import numpy as np
 
 from ._cvode import CVodeError, CVodeIntegrator
 from .errors import StepError
-from .master import RunContext, check_all_rows, output_checker, record_point, watched_out_nodes
+from .master import RunContext, check_all_rows, output_checker, watched_out_nodes
 from .schedule import flow_order, topo_schedule
 from .units import Unit
 
@@ -274,7 +274,7 @@ def run_strong(ctx: RunContext, t0: float, t_end: float) -> None:
         for op in rec_ops:
             op()
         check(t)
-        record_point(ctx, t)
+        ctx.record(t)
         if len(ctx.rows) % 256 == 0:
             ctx.tick(t)
 

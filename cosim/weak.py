@@ -8,7 +8,7 @@ import numpy as np
 
 from ._cvode import CVodeError
 from .errors import StepError
-from .master import RunContext, check_all_rows, output_checker, record_point, watched_out_nodes
+from .master import RunContext, check_all_rows, output_checker, watched_out_nodes
 from .schedule import flow_order, input_sources, setter_op, topo_schedule
 from .strong import OdeGroup
 from .units import Unit
@@ -77,7 +77,7 @@ def run_weak(ctx: RunContext, t0: float, t_end: float) -> None:
     check = output_checker(ctx, units)
     consistent(t0)
     check(t0)
-    record_point(ctx, t0)
+    ctx.record(t0)
     h = m.step_s
     t = t0
     scale = {u.name: [abs(u.inbuf[i]) for i in range(len(u.input_names))] for u in stepped}
@@ -159,7 +159,7 @@ def run_weak(ctx: RunContext, t0: float, t_end: float) -> None:
         t = t + h_try
         n_steps += 1
         check(t)
-        record_point(ctx, t)
+        ctx.record(t)
         if n_steps % 256 == 0:
             ctx.tick(t)
     ctx.stats.update({"macro_steps": n_steps, "rejected_steps": n_rejected})
