@@ -28,7 +28,7 @@ if TYPE_CHECKING:
 
 #: Samples of the stroke's shortest ramp the recording grid (and a fixed macro step) must give.
 #: At the paper's 0.25 s ramps, a 10 ms grid keeps the chordwise TR within 2.5 % of the 1 ms one
-#: (thrust has sharp flap-impact peaks); 25 ms is 11 % off, 100 ms 50 %.
+#: (thrust has sharp flap-impact peaks); 25 ms is 11 % off, 100 ms 50 % (bench/guard_margins.py).
 SAMPLES_PER_RAMP = 25
 #: Largest weak-coupling macro step on a feedback loop, in units of the loop's fastest time
 #: constant. The test bed (servo load filter 5 ms) goes unstable from 7-15 ms under Jacobi and
@@ -122,10 +122,12 @@ class PassiveEnergyGuard:
     morphology reach at most 0.87 W+, runaways and unstable couplings 8-750 W+).
 
     Judging starts at `judge_from_s` (one stroke period in): before it both numbers are small and
-    their ratio says nothing. A minimum-jerk start gives ~1e-10 J of each in the first milliseconds,
-    and a weak coupling's first steps, which hold the root's acceleration while its angle and rate
-    stand still, put 0.01-4 mJ into the feather that the sampled root power does not show (test
-    bed, macro steps 1-10 ms). Work and energy are still accounted from the start."""
+    their ratio says nothing: in the first milliseconds of a minimum-jerk start it is set by the
+    trapezoid rule, and a weak coupling's first steps, which hold the root's acceleration while its angle and rate
+    stand still, put energy into the feather that the sampled root power does not show (beyond
+    2 W+ by 1.2-3.6 mJ on the test bed at 5-10 ms steps, bench/guard_margins.py). Work and energy
+    are still accounted from the start. The price: a runaway that starts within the first period
+    runs unjudged until its end (docs/stability.md)."""
 
     def __init__(self, unit: "Unit", energy_index: int, pairs: list[tuple[int, int]], factor: float,
                  judge_from_s: float) -> None:
