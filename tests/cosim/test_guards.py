@@ -123,3 +123,16 @@ def test_energy_guard_waits_for_the_judging_time():
     with pytest.raises(StepError) as info:
         _drive(guard, unit, 1.0, extra=lambda t: 0.02 if t >= 0.1 else 0.0)
     assert info.value.t_s == pytest.approx(0.5)
+
+
+@pytest.mark.parametrize("override,message", [
+    ({"master.passive_energy_factor": -1}, "must be >= 0"),
+    ({"master.passive_energy_factor": "nan"}, "must be >= 0"),
+    ({"master.passive_energy_factor": "lots"}, "is not a valid float"),
+    ({"master.check_steps": "maybe"}, "is not a valid bool"),
+    ({"master.check_steps": 3}, "is not a valid bool"),
+])
+def test_guard_options_refuse_garbage(override, message):
+    (key,) = override
+    with pytest.raises(SceneError, match=rf"{key} = .*{message}"):
+        graph.plan(load_scene("testbed").with_overrides(override))
