@@ -22,7 +22,12 @@ from typing import Iterable, Sequence
 from .blocks import ResolvedBlock, is_rollback_capable, resolve
 from .errors import SceneError
 from .guards import step_problems
-from .scene import PortRef, Scene
+from .scene import FrozenMap, PortRef, Scene
+
+#: A model parameter that the scene's stroke controller sets wherever the scene leaves it unset:
+#: the feather's oscillatory drag takes each point's Keulegan–Carpenter number from the stroke
+#: amplitude (docs/model.md), which lives in the controller.
+STROKE_AMPLITUDE_PARAMETER = "stroke_amplitude_rad"
 
 DIMENSIONLESS = {"", "1", "-"}
 
@@ -71,6 +76,29 @@ def _port_list(ports: Iterable[str]) -> str:
     return ", ".join(ports) or "none"
 
 
+def _follow_stroke_amplitude(resolved: dict[str, ResolvedBlock]) -> list[str]:
+    """Give every model block with an unset STROKE_AMPLITUDE_PARAMETER the amplitude of the
+    scene's stroke controller (when it has exactly one); returns the plan notes saying so."""
+    strokes = {rb.obj.stroke.amplitude_rad for rb in resolved.values() if rb.spec.kind == "stroke"}
+    if len(strokes) != 1:
+        return []
+    amplitude_rad = strokes.pop()
+    followers = []
+    for name, rb in resolved.items():
+        if rb.model is None or STROKE_AMPLITUDE_PARAMETER in rb.parameters:
+            continue
+        if STROKE_AMPLITUDE_PARAMETER not in {p.name for p in rb.model.parameters}:
+            continue
+        rb.parameters[STROKE_AMPLITUDE_PARAMETER] = amplitude_rad
+        kind, model_ref, options, _ = rb.identity
+        rb.identity = (kind, model_ref, options, FrozenMap(rb.parameters))
+        followers.append(name)
+    if not followers:
+        return []
+    return [f"{', '.join(followers)}: {STROKE_AMPLITUDE_PARAMETER} = {amplitude_rad:.4g} rad follows the stroke "
+            "controller's amplitude (sets the oscillatory drag's Keulegan-Carpenter numbers)"]
+
+
 def plan(scene: Scene, outputs: Sequence[str] | None = None) -> Plan:
     problems: list[str] = []
     resolved: dict[str, ResolvedBlock] = {}
@@ -82,6 +110,7 @@ def plan(scene: Scene, outputs: Sequence[str] | None = None) -> Plan:
             resolved[spec.name] = resolve(spec)
         except SceneError as exc:
             problems.extend(exc.problems)
+    amplitude_notes = _follow_stroke_amplitude(resolved)
     known = ", ".join(names)
 
     def check_output(ref: PortRef, what: str) -> bool:
@@ -203,7 +232,7 @@ def plan(scene: Scene, outputs: Sequence[str] | None = None) -> Plan:
                 while alias_of[alias_of[n]] != alias_of[n]:
                     alias_of[n] = alias_of[alias_of[n]]
     instantiate = [n for n in names if n in needed and alias_of[n] == n]
-    notes: list[str] = []
+    notes: list[str] = list(amplitude_notes)
     for n in names:
         if n in needed and alias_of[n] != n:
             notes.append(f"'{n}' is identical to '{alias_of[n]}' and driven by the same signals: integrated once")

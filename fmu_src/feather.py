@@ -9,22 +9,25 @@ link whose flap points move out of the plane (z); spanwise flaps replace one spr
 hinge. Every point's position is a CasADi expression of the root angle θ0 and the generalised
 coordinates Q, so velocities, accelerations and the mass matrix follow from exact Jacobians:
 
-    M(Q) Q̈ = Σ_p J_pᵀ [F_p − M_p (j0_p θ̈0 + c_p)] − τ_internal,   M = Σ_p J_pᵀ M_p J_p,
+    M(Q) Q̈ = Σ_p [J_pᵀ F_p − b_p] − τ_internal,   M = Σ_p J_pᵀ (m_p I + m_a,p n_p n_pᵀ) J_p,
 
-with M_p = m_p I + m_a,p n_p n_pᵀ. Added mass sits in the mass matrix because it is 100–160× the
-structural mass: applied explicitly from a lagged acceleration it is unstable.
-The load cell reads ŷ·Σ_p (F_drag,p − M_p r̈_p): the static buoyancy is tared away exactly.
+where b_p holds the inertial and fluid-reactive terms not proportional to Q̈ (`fmu_src.fluid`:
+the fluid force follows from the fluid's kinetic energy ½ Σ m_a v_n², so it conserves energy and
+its mean over a periodic motion is zero). Added mass sits in the mass matrix because it is
+100–160× the structural mass: applied explicitly from a lagged acceleration it is unstable.
+The load cell reads ŷ·Σ_p (F_drag,p − d/dt(m_p v_p + m_a,p v_n,p n_p)): the momentum balance of
+structure plus fluid impulse; the static buoyancy is tared away exactly.
 """
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import casadi as ca
 
 from .errors import ModelError
 from .model import Model, Parameter, Variable
 from .contact import one_way_stop
+from .fluid import Point, dnv_added_mass_coeff, oscillatory_drag_coeff, point_dynamics, stroke_keulegan_carpenter
 from .linalg import ldl_solve
 
 MORPHOLOGIES = ("plain", "chordwise", "spanwise")
@@ -42,7 +45,12 @@ def _common_parameters() -> list[Parameter]:
         Parameter("solid_density_kg_m3", 905.0, "kg/m3", 0.0, 20000.0, "sheet density (PP 905)", True),
         Parameter("water_density_kg_m3", 1000.0, "kg/m3", 0.0, 2000.0, "fluid density", True),
         Parameter("gravity_m_s2", 9.81, "m/s2", 0.0, 20.0, "gravity along -y (the thrust axis)"),
-        Parameter("drag_coeff", 1.2, "1", 0.0, 10.0, "normal drag coefficient C_n (steady plate 1.2; oscillatory up to ~6)"),
+        Parameter("oscillatory_drag", 1.0, "1", 0.0, 1.0,
+                  "1: each point's C_d from its Keulegan-Carpenter number (Luhar & Nepf 2016); 0: the constant drag_coeff",
+                  choices=(0.0, 1.0)),
+        Parameter("stroke_amplitude_rad", math.radians(60.0), "rad", 0.0, math.pi,
+                  "peak-to-peak root stroke that sets each point's KC = pi*s*A/w (oscillatory drag)", True),
+        Parameter("drag_coeff", 1.2, "1", 0.0, 10.0, "constant normal drag coefficient C_n when oscillatory_drag = 0 (steady plate 1.2)"),
         Parameter("added_mass_scale", 1.0, "1", 0.0, 3.0, "multiplier on the DNV 3D added-mass coefficient"),
         Parameter("joint_damping_Nms_rad", 0.0, "N.m.s/rad", 0.0, 1.0, "viscous damping of each bending joint"),
     ]
@@ -50,7 +58,8 @@ def _common_parameters() -> list[Parameter]:
 
 def _hinge_parameters(fold_limit_deg: float) -> list[Parameter]:
     return [
-        Parameter("hinge_stiffness_Nm_rad_m", 1e-4, "N.m/rad/m", 0.0, 1.0, "weak spring of the tape hinge, per metre of hinge"),
+        Parameter("hinge_stiffness_Nm_rad_m", 1e-2, "N.m/rad/m", 0.0, 1.0,
+                  "spring of the tape hinge per metre of hinge (tape estimate 1e-3 to 1e-1)"),
         Parameter("contact_stiffness_Nm_rad_m", 10.0, "N.m/rad/m", 0.0, 1e5, "stop stiffness per metre of hinge", True),
         Parameter("contact_damping_Nms_rad_m", 0.08, "N.m.s/rad/m", 0.0, 100.0, "stop damping per metre of hinge"),
         Parameter("contact_smoothing_rad", math.radians(0.5), "rad", 0.0, 0.2, "penetration over which the stop force ramps in", True),
@@ -75,29 +84,23 @@ def _morphology_parameters(morphology: str) -> list[Parameter]:
     ]
 
 
-def dnv_added_mass_coeff(aspect_ratio: ca.SX) -> ca.SX:
-    """3D added-mass coefficient of a rectangular plate, b/a >= 1 (DNV-RP-C205 Table A-2, fitted
-    to 0.12 %: 1 → 0.579, 2 → 0.757, 10 → 0.947, ∞ → 1)."""
-    return 1.0 - 0.63479 / (aspect_ratio**1.06890 + 0.50706)
+def feather_model(morphology: str = "plain", n_units: int = 10, root_support: bool | None = None) -> Model:
+    """Build the feather model. `morphology`, `n_units` and `root_support` change the number of
+    states and are therefore build options; every physical constant is a parameter.
 
-
-@dataclass
-class _Point:
-    position: ca.SX  # 3-vector
-    normal: ca.SX  # unit 3-vector
-    mass_kg: ca.SX
-    added_mass_kg: ca.SX
-    area_m2: ca.SX
-    volume_m3: ca.SX
-
-
-def feather_model(morphology: str = "plain", n_units: int = 10) -> Model:
-    """Build the feather model. `morphology` and `n_units` change the number of states and are
-    therefore build options; every physical constant is a parameter."""
+    `root_support` (spanwise only, default True): the part between the root and the hinge at
+    l_root is held by the support (the paper, Sec. II-A: the spanwise feathers "have a joint at a
+    distance l_root from the root where the support is") and moves as one rigid link; the outer
+    part is a chain of `n_units` units. False: both parts bend, n_units/2 units each."""
     if morphology not in MORPHOLOGIES:
         raise ModelError(f"feather morphology '{morphology}' is unknown; valid: {', '.join(MORPHOLOGIES)}")
     if not isinstance(n_units, int) or not 2 <= n_units <= 60:
         raise ModelError(f"feather n_units = {n_units!r} must be an integer in [2, 60]")
+    if root_support is not None and morphology != "spanwise":
+        raise ModelError(f"feather root_support applies to the spanwise morphology only, not '{morphology}'")
+    if root_support is not None and not isinstance(root_support, bool):
+        raise ModelError(f"feather root_support = {root_support!r} must be true or false")
+    supported = morphology == "spanwise" and root_support is not False
 
     parameters = _common_parameters() + _morphology_parameters(morphology)
     p = ca.SX.sym("p", len(parameters))
@@ -121,14 +124,25 @@ def feather_model(morphology: str = "plain", n_units: int = 10) -> Model:
     short, long_ = ca.fmin(width, length), ca.fmax(width, length)
     added_mass_coeff = P["added_mass_scale"] * dnv_added_mass_coeff(long_ / short) * short**2 * long_ / (width**2 * length)
 
+    def drag_coeff(span_m):
+        """C_d at distance span_m from the root: oscillatory-flow plate value or the constant."""
+        kc = stroke_keulegan_carpenter(span_m, P["stroke_amplitude_rad"], width)
+        return ca.if_else(P["oscillatory_drag"] > 0.5, oscillatory_drag_coeff(kc), P["drag_coeff"])
+
     # Link lengths, joint kinds and bending stiffness (midpoint layout; see module docstring).
     if morphology == "spanwise":
-        n_in = n_units // 2
+        n_in = 0 if supported else n_units // 2  # bending units between the root and the hinge
         n_out = n_units - n_in
         root_length = length / P["length_ratio"]
-        seg_in, seg_out = root_length / n_in, (length - root_length) / n_out
-        link_lengths = [seg_in / 2] + [seg_in] * (n_in - 1) + [seg_in / 2, seg_out / 2] + [seg_out] * (n_out - 1) + [seg_out / 2]
-        joints = [("spring", flexural_rigidity / seg_in)] * n_in + [("hinge", None)] + [("spring", flexural_rigidity / seg_out)] * n_out
+        seg_out = (length - root_length) / n_out
+        if supported:
+            inner_links = [root_length]
+        else:
+            seg_in = root_length / n_in
+            inner_links = [seg_in / 2] + [seg_in] * (n_in - 1) + [seg_in / 2]
+        link_lengths = inner_links + [seg_out / 2] + [seg_out] * (n_out - 1) + [seg_out / 2]
+        joints = ([] if supported else [("spring", flexural_rigidity / seg_in)] * n_in) + [("hinge", None)] + [
+            ("spring", flexural_rigidity / seg_out)] * n_out
     else:
         seg = length / n_units
         link_lengths = [seg / 2] + [seg] * (n_units - 1) + [seg / 2]
@@ -141,8 +155,9 @@ def feather_model(morphology: str = "plain", n_units: int = 10) -> Model:
     Q_rate = ca.SX.sym("qd", Q.numel())
 
     z_axis = ca.DM([0.0, 0.0, 1.0])
-    points: list[_Point] = []
+    points: list[Point] = []
     origin = ca.SX.zeros(3)
+    arc = 0  # span coordinate of the link's start, from the root
     angle = theta0
     for j, link_length in enumerate(link_lengths):
         if j > 0:
@@ -150,10 +165,10 @@ def feather_model(morphology: str = "plain", n_units: int = 10) -> Model:
         along = ca.vertcat(ca.cos(angle), ca.sin(angle), 0)
         normal = ca.vertcat(-ca.sin(angle), ca.cos(angle), 0)
         for c in GAUSS:
-            points.append(_Point(
+            points.append(Point(
                 origin + c * link_length * along, normal,
                 rho_s * spine * thick * link_length / 2, added_mass_coeff * kappa * rho * math.pi * spine**2 / 4 * link_length / 2,
-                spine * link_length / 2, spine * thick * link_length / 2,
+                spine * link_length / 2, spine * thick * link_length / 2, drag_coeff(arc + c * link_length),
             ))
         if morphology == "chordwise":
             fold = psi[j]
@@ -167,53 +182,42 @@ def feather_model(morphology: str = "plain", n_units: int = 10) -> Model:
                 for s in ADDED_MASS_CHORD:
                     offset = (spine / 2 + s * chord * ca.cos(fold)) * z_axis - s * chord * ca.sin(fold) * normal
                     quarter = link_length * chord / 4
-                    points.append(_Point(
+                    points.append(Point(
                         hinge_point + offset, flap_normal, 2 * rho_s * thick * quarter,
                         2 * added_mass_coeff * kappa * rho * math.pi * chord**2 / 4 * link_length / 4,
-                        2 * quarter, 2 * thick * quarter,
+                        2 * quarter, 2 * thick * quarter, drag_coeff(arc + c * link_length),
                     ))
         origin = origin + link_length * along
+        arc = arc + link_length
 
-    # Newton–Euler in generalised coordinates with the added mass in the mass matrix:
-    # M(Q) Q̈ = Σ_p J_pᵀ [F_p − M_p (j0_p θ̈0 + c_p)] − τ_internal, with M_p = m_p I + m_a,p n nᵀ.
-    # The added-mass force is the Morison form −m_a (n·r̈) n of the spec: it leaves out the Munk
-    # moment, which flow separation at these Reynolds numbers largely destroys (docs/model.md).
+    # Lagrange's equations over G = (Q, θ0) with θ0 prescribed: the rows of Q give Q̈, the row of
+    # θ0 gives the torque the actuator must apply.
     y_axis = ca.DM([0.0, 1.0, 0.0])
-    generalized = ca.vertcat(Q, theta0)
-    generalized_rate = ca.vertcat(Q_rate, theta0_rate)
-    mass_matrix = ca.SX.zeros(Q.numel(), Q.numel())
-    force = ca.SX.zeros(Q.numel())
-    kinetic_energy = 0
-    point_terms = []
-    for pt in points:
-        jac = ca.jacobian(pt.position, Q)
-        jac0 = ca.jacobian(pt.position, theta0)
-        velocity = jac @ Q_rate + jac0 * theta0_rate
-        convective = ca.jtimes(velocity, generalized, generalized_rate)
-        jac_n = jac.T @ pt.normal  # the added mass acts along the normal only
-        normal_speed = ca.dot(velocity + flow_speed * y_axis, pt.normal)
-        drag = -0.5 * rho * P["drag_coeff"] * pt.area_m2 * ca.fabs(normal_speed) * normal_speed * pt.normal
-        buoyancy = (rho - rho_s) * pt.volume_m3 * grav * y_axis
-        prescribed = jac0 * theta0_accel + convective
-        mass_matrix += pt.mass_kg * (jac.T @ jac) + pt.added_mass_kg * (jac_n @ jac_n.T)
-        force += jac.T @ (drag + buoyancy - pt.mass_kg * prescribed) - pt.added_mass_kg * jac_n * ca.dot(pt.normal, prescribed)
-        kinetic_energy += 0.5 * pt.mass_kg * ca.dot(velocity, velocity) + 0.5 * pt.added_mass_kg * ca.dot(pt.normal, velocity) ** 2
-        point_terms.append((pt, jac, prescribed, drag, buoyancy))
+    coords = ca.vertcat(Q, theta0)
+    coord_rates = ca.vertcat(Q_rate, theta0_rate)
+    n_free = Q.numel()
+    gravity_force = (rho - rho_s) * grav * y_axis  # net buoyancy per unit volume
+    dynamics = [point_dynamics(pt, coords, coord_rates, n_free, theta0_accel, flow_speed, rho, gravity_force)
+                for pt in points]
+    mass_matrix = sum(d.mass_matrix for d in dynamics)
+    generalized_force = sum(d.applied - d.bias for d in dynamics)
 
-    internal, potential_energy, fold_angle = _internal_torques(morphology, joints, q, psi, Q_rate, P, width, link_lengths)
+    internal, elastic_energy, fold_angle = _internal_torques(morphology, joints, q, psi, Q_rate, P, width, link_lengths)
     # Flaps first: their block of M is diagonal, so eliminating them first causes no fill-in.
-    order = list(range(n_joints, Q.numel())) + list(range(n_joints))
-    permuted = ldl_solve(mass_matrix[order, order], (force - internal)[order])
-    Q_accel = ca.vertcat(*[permuted[order.index(k)] for k in range(Q.numel())])
+    order = list(range(n_joints, n_free)) + list(range(n_joints))
+    permuted = ldl_solve(mass_matrix[order, order], (generalized_force[:n_free] - internal)[order])
+    Q_accel = ca.vertcat(*[permuted[order.index(k)] for k in range(n_free)])
 
-    thrust = 0
-    root_torque = 0
-    for pt, jac, prescribed, drag, buoyancy in point_terms:
-        accel = jac @ Q_accel + prescribed
-        inertial = pt.mass_kg * accel + pt.added_mass_kg * ca.dot(pt.normal, accel) * pt.normal
-        thrust += ca.dot(y_axis, drag - inertial)
-        reaction = inertial - drag - buoyancy
-        root_torque += pt.position[0] * reaction[1] - pt.position[1] * reaction[0]
+    root_torque = ca.dot(mass_matrix[n_free, :n_free].T, Q_accel) - generalized_force[n_free]
+    drag_thrust = sum(d.drag[1] for d in dynamics)
+    thrust = drag_thrust - sum(d.momentum_rate(Q_accel)[1] for d in dynamics)
+    momentum_y = sum(d.momentum()[1] for d in dynamics)
+    kinetic_energy = sum(d.kinetic_energy() for d in dynamics)
+    # Buoyancy energy counted from the position of least potential a point can reach (no point is
+    # farther than l + w from the root), so that the energy is never negative.
+    reach = length + width
+    buoyancy_energy = sum(pt.volume_m3 * (ca.fabs(gravity_force[1]) * reach - ca.dot(gravity_force, pt.position))
+                          for pt in points)
     tip = origin
 
     states = [Variable(f"joint_{k}_rad", "rad", f"relative angle of bending joint {k} (0 = root side)") for k in range(n_joints)]
@@ -233,13 +237,15 @@ def feather_model(morphology: str = "plain", n_units: int = 10) -> Model:
         Variable("tip_x_m", "m", "tip position along x"),
         Variable("tip_y_m", "m", "tip position along y (thrust axis)"),
         Variable("flap_angle_rad", "rad", "fold angle: mean over chordwise flaps, spanwise hinge fold; 0 plain"),
-        Variable("mechanical_energy_J", "J", "kinetic (incl. added mass) plus elastic energy"),
+        Variable("mechanical_energy_J", "J", "structure and fluid kinetic, elastic and buoyancy energy (root frame)"),
+        Variable("drag_thrust_N", "N", "the drag part of thrust_N (the rest, the momentum change, averages to zero)"),
+        Variable("momentum_y_Ns", "N.s", "structure momentum plus fluid impulse along +y (root frame)"),
     )
     # Merge structurally equal subexpressions built separately per point: halves the generated C.
     xdot, outputs_expr = ca.vertsplit(
         ca.cse(ca.vertcat(Q_rate, Q_accel, thrust, root_torque, tip[0], tip[1], fold_angle,
-                          kinetic_energy + potential_energy)),
-        [0, 2 * Q.numel(), 2 * Q.numel() + 6])
+                          kinetic_energy + elastic_energy + buoyancy_energy, drag_thrust, momentum_y)),
+        [0, 2 * Q.numel(), 2 * Q.numel() + 8])
     return Model(
         name=f"feather_{morphology}",
         description=f"{morphology} feather, {n_units} units, flapped at the root in water",
@@ -252,7 +258,8 @@ def feather_model(morphology: str = "plain", n_units: int = 10) -> Model:
         p=p,
         xdot=xdot,
         y=outputs_expr,
-        options={"morphology": morphology, "n_units": n_units},
+        options={"morphology": morphology, "n_units": n_units,
+                 **({"root_support": supported} if morphology == "spanwise" else {})},
     )
 
 

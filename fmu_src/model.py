@@ -30,7 +30,8 @@ class Variable:
 class Parameter:
     """A physical constant of a model, tunable through the FMU; valid values lie in [minimum, maximum].
 
-    `exclusive_minimum` makes the lower bound strict (a length must be > 0, not >= 0).
+    `exclusive_minimum` makes the lower bound strict (a length must be > 0, not >= 0); `choices`,
+    when given, lists the only values allowed (a switch).
     """
 
     name: str
@@ -40,8 +41,14 @@ class Parameter:
     maximum: float
     description: str
     exclusive_minimum: bool = False
+    choices: tuple[float, ...] | None = None
 
     def check(self, value: float) -> None:
+        if self.choices is not None and value not in self.choices:
+            raise ModelError(
+                f"parameter '{self.name}' = {value!r} must be one of {', '.join(f'{c:g}' for c in self.choices)} "
+                f"({self.description})"
+            )
         low_ok = value > self.minimum if self.exclusive_minimum else value >= self.minimum
         if not (math.isfinite(value) and low_ok and value <= self.maximum):
             bracket = "(" if self.exclusive_minimum else "["

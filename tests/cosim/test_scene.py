@@ -173,3 +173,18 @@ def test_pruning_and_dedup_in_plan():
                       connections=OSCILLATOR["connections"] + ["b.force_N -> extra.force_N"])
     plan = graph.plan(same, outputs=["extra.position_m"])  # same model, same drive: computed by 'a'
     assert plan.alias_of["extra"] == "a" and "extra" not in plan.instantiate
+
+
+def test_feather_drag_amplitude_follows_the_stroke_unless_set():
+    """The oscillatory drag's KC comes from the stroke amplitude, which lives in the controller."""
+    base = load_scene("testbed")
+    assert graph.plan(base).blocks["feather"].parameters["stroke_amplitude_rad"] == pytest.approx(math.radians(60))
+    wide = graph.plan(base.with_overrides({"controller.amplitude_deg": 90}))
+    assert wide.blocks["feather"].parameters["stroke_amplitude_rad"] == pytest.approx(math.radians(90))
+    assert any("stroke_amplitude_rad" in note for note in wide.notes)
+    pinned = graph.plan(base.with_overrides({"controller.amplitude_deg": 90, "feather.stroke_amplitude_rad": 0.5}))
+    assert pinned.blocks["feather"].parameters["stroke_amplitude_rad"] == 0.5
+    robot = graph.plan(load_scene("robot"))  # both feathers follow, and stay identical (integrated once)
+    assert robot.alias_of["feather_right"] == "feather_left"
+    with pytest.raises(SceneError, match="stroke_amplitude_rad"):
+        graph.plan(base.with_overrides({"feather.stroke_amplitude_rad": -1}))

@@ -2,7 +2,6 @@
 integration of the same model, and give the expected thrust ratios under the paper's stroke."""
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import casadi as ca
@@ -111,13 +110,12 @@ def test_plain_feather_symmetric_stroke_fmu_is_symmetric(fmus):
 def test_chordwise_feather_symmetric_stroke_gives_directional_thrust(fmus):
     # Chaotic flap chatter: judge on TR over 3 whole periods after 3 of transient (spec §9).
     thrust = stroke_thrust(fmus["feather-chordwise"], MODELS["feather-chordwise"](), Stroke(), periods=6)
-    assert windowed_thrust_ratio(thrust, 1500, 3) >= 1.5
+    assert 1.5 <= windowed_thrust_ratio(thrust, 1500, 3) <= 3.0
     assert np.mean(thrust[4500:]) > 0
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "Known model gap: the spanwise feather gives TR 1.0-1.2 under the symmetric stroke for every "
-    "physical coefficient set tried (docs/model.md), not the paper's ~2."))
 def test_spanwise_feather_symmetric_stroke_gives_directional_thrust(fmus):
+    """LR 2, the root part held by its support (docs/model.md, spanwise mechanism)."""
     thrust = stroke_thrust(fmus["feather-spanwise"], MODELS["feather-spanwise"](), Stroke(), periods=6)
     assert windowed_thrust_ratio(thrust, 1500, 3) >= 1.5
+    assert np.mean(thrust[4500:]) > 0

@@ -3,7 +3,7 @@
 A stress case passes when its result is
 
 * finite: every recorded signal, the thrust ratio and the mean thrust;
-* energy-plausible: the feather's mechanical energy (kinetic incl. added mass + elastic) is never
+* energy-plausible: the feather's mechanical energy (kinetic incl. added mass, elastic, buoyancy) is never
   negative, the actuator does net positive work on it over the metric window (a passive feather
   in water dissipates; negative mean root power means the numerics created energy), its energy
   does not grow from period to period, and no interval shows an energy gain larger than the work
@@ -12,14 +12,12 @@ A stress case passes when its result is
   pointwise; flapped feathers are chaotic (physics notes §9), so they are judged on windowed
   statistics only (thrust ratio and mean thrust per period must not scatter wildly).
 
-Tolerances are measured, not guessed (see docs/stability.md). The energy balance cannot close
-exactly: the Morison added-mass force -m_a (n.r'') n is not derived from an energy (docs/model.md),
-and its error grows with how fast the surface normals turn. Accurate (strong, rtol 1e-6) runs of
-the plain feather close it to 1-3 % of the peak energy at 60°, but only to 18-20 % at 120° with
-the fastest ramps; flapped feathers, whose flaps fold fast, to 35-45 %. Hence 30 % (plain) and
-75 % (flapped): the checks catch energy injection by a coupling that goes unstable (plain testbed,
-Jacobi: 33 % at H = 7 ms, 96 % at 10 ms), not every loss of accuracy; accuracy is what the
-macro-step tests and bench/cosim_work_precision.py compare against references.
+Tolerances are measured, not guessed (see docs/stability.md). They were set while the feather's
+added-mass force was the Morison form, which is not derived from an energy (30 % of the peak
+energy for the plain feather, 75 % for flapped ones); the energy-consistent fluid force of issue 11
+closes the balance exactly up to integration and sampling error, so these are now generous: they
+catch energy injection by a coupling that goes unstable, not every loss of accuracy; accuracy is
+what the macro-step tests and bench/cosim_work_precision.py compare against references.
 
 Every failure is a readable line; `physical_problems` returns them, `assert_physical` asserts none.
 """
@@ -52,8 +50,11 @@ class Tolerances:
 
 PLAIN = Tolerances(energy_balance=0.30, periodic=0.02, tr_spread=0.05, growth=1.5)
 # Chaotic: single periods of an accurate run reach 2x the usual peak energy and 0.7x the usual
-# thrust ratio now and then (spanwise, 10 periods, strong coupling at rtol 1e-6).
-FLAPPED = Tolerances(energy_balance=0.75, periodic=math.inf, tr_spread=0.6, growth=3.0)
+# thrust ratio now and then (spanwise, 10 periods, strong coupling at rtol 1e-6). A spanwise
+# feather can also answer with period 2, its outer part folding fully every other stroke: TR per
+# period alternating 0.90 / 1.43 under strong coupling, 0.78 / 1.51 under Gauss-Seidel at 1 ms
+# (spread 0.46 and 0.68; the random spanwise case with a 0.76 s stroke, issue 11 re-measurement).
+FLAPPED = Tolerances(energy_balance=0.75, periodic=math.inf, tr_spread=0.8, growth=3.0)
 
 
 def tolerances(morphology: str) -> Tolerances:

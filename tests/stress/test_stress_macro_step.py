@@ -19,7 +19,7 @@ import pytest
 
 from cosim.errors import SceneError
 from fmu_src.errors import FeatherstarError
-from stress_support import THRUST, assert_clear_error, metrics_of, physical_problems, run_case
+from stress_support import ENERGY, THRUST, assert_clear_error, metrics_of, physical_problems, run_case
 
 pytestmark = pytest.mark.stress
 
@@ -102,12 +102,16 @@ def test_the_refused_steps_are_wrong_when_the_check_is_lifted(scene, coupling, s
     assert problems
 
 
-def test_the_energy_guard_stops_an_unstable_coupling_the_step_check_lets_through():
-    """With the step check lifted, Jacobi at 10 ms on the test bed pumps energy into the feather
-    (peak 0.7 J against 0.017 J); the passive-energy guard stops it within a few periods."""
-    with pytest.raises(FeatherstarError, match="mechanical energy gained") as info:
-        run_case("testbed", {**PLAIN, "master.coupling": "jacobi", "master.step_s": 1e-2, "master.check_steps": False})
-    assert_clear_error(info.value, block="feather")
+def test_jacobi_past_the_step_limit_loses_accuracy_not_stability():
+    """With the Morison added-mass force (before issue 11), Jacobi at 10 ms on the test bed pumped
+    energy into the feather (peak 0.7 J against 0.017 J) until the energy guard stopped it. The
+    energy-consistent feather is passive: the same run, guard on, stays within 2x the strong run's
+    energy and TR; the energy guard rightly stays quiet, and what is left is the energy-balance
+    error the step check refuses (test_the_refused_steps_are_wrong_when_the_check_is_lifted)."""
+    jacobi = run_case("testbed", {**PLAIN, "master.coupling": "jacobi", "master.step_s": 1e-2, "master.check_steps": False})
+    strong = _reference("testbed")
+    assert np.max(jacobi[ENERGY]) <= 2 * np.max(strong[ENERGY])
+    assert jacobi.summary["thrust_ratio"] == pytest.approx(strong.summary["thrust_ratio"], rel=0.02)
 
 
 def test_strong_coupling_recording_grid_inside_the_limit_is_accurate():
