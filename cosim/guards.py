@@ -9,9 +9,9 @@ Two kinds, both measured rather than guessed (docs/stability.md has the tables):
   instead of 0.985; a 0.5 s recording grid: TR 0.03).
 * **During the run** (`passive_energy_guards`, StepError): a passive block, one that water and
   damping can only take energy out of, may not hold much more mechanical energy than its ports
-  have put in. This catches a coupling loop that pumps energy into a feather and the feather
-  model's own added-mass runaway (docs/model.md), which otherwise finish with joules of energy
-  and absurd thrust ratios.
+  have put in. This catches a coupling loop or a block's model that creates energy, which would
+  otherwise finish with joules of energy and absurd thrust ratios (the feather's Morison
+  added-mass force did, before issue 11 made it energy-consistent; docs/stability.md).
 
 `master.check_steps = false` lifts the first kind (to study the coupling error itself, as
 bench/stability_map.py does); `master.passive_energy_factor = 0` the second.
@@ -118,16 +118,17 @@ class PassiveEnergyGuard:
     positive work its power ports have done on it since the start.
 
     For a passive block E(t) - E(0) <= W+(0, t) holds exactly; the factor leaves room for the
-    Morison added-mass force, which is not derived from an energy (accurate runs of every
-    morphology reach at most 0.87 W+, runaways and unstable couplings 8-750 W+).
+    trapezoid rule on the recorded grid (accurate runs of every morphology store at most 0.24 W+,
+    weak couplings at the largest allowed steps 0.28 W+; the Morison added-mass force of sessions
+    1-2 ran away to 168-750 W+, bench/guard_margins.py).
 
     Judging starts at `judge_from_s` (one stroke period in): before it both numbers are small and
     their ratio says nothing: in the first milliseconds of a minimum-jerk start it is set by the
     trapezoid rule, and a weak coupling's first steps, which hold the root's acceleration while its angle and rate
-    stand still, put energy into the feather that the sampled root power does not show (beyond
-    2 W+ by 1.2-3.6 mJ on the test bed at 5-10 ms steps, bench/guard_margins.py). Work and energy
-    are still accounted from the start. The price: a runaway that starts within the first period
-    runs unjudged until its end (docs/stability.md)."""
+    stand still, put energy into the feather that the sampled root power does not show (0.7-2.7 mJ
+    on the test bed at 5-10 ms steps, bench/guard_margins.py). Work and energy are still accounted
+    from the start. The price: a runaway that starts within the first period runs unjudged until
+    its end (docs/stability.md)."""
 
     def __init__(self, unit: "Unit", energy_index: int, pairs: list[tuple[int, int]], factor: float,
                  judge_from_s: float) -> None:
@@ -157,10 +158,10 @@ class PassiveEnergyGuard:
                 self.unit.name, t,
                 f"mechanical energy gained {gain:.3g} J, more than {self.factor:g}x the {self.work_in_J:.3g} J its "
                 f"ports ({ports}) put in",
-                cause="energy created by the numerics: a weak coupling whose macro step is too long for a "
-                "feedback loop, or the feather model's added-mass runaway (long, wide or thin feathers under "
-                "large fast strokes, docs/stability.md); shorten master.step_s, use strong coupling, or choose "
-                "a stiffer, smaller feather or a slower stroke")
+                cause="energy created by the numerics or by the block's own model: a weak coupling whose macro "
+                "step is too long for a feedback loop, an integrator tolerance too loose for the block, or a "
+                "model that is not passive (docs/stability.md); shorten master.step_s, use strong coupling, "
+                "tighten master.rtol, or check the block's equations")
 
 
 def passive_energy_guards(units: dict[str, "Unit"], factor: float, judge_from_s: float) -> list[PassiveEnergyGuard]:

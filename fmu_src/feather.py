@@ -4,9 +4,9 @@ The feather is a chain of rigid links joined by rotational springs (Stella et al
 docs/model.md): springs sit at the midpoints of N equal segments, so the first half-segment is
 rigid with the actuator and the tip link is half length (f1, f2 within 1 % of Euler–Bernoulli at
 N = 10). Each link carries quadrature points; each point has structural mass, added mass along its
-surface normal, a normal-drag area and a net-buoyancy volume. Chordwise flaps add a fold angle per
-link whose flap points move out of the plane (z); spanwise flaps replace one spring with a one-way
-hinge. Every point's position is a CasADi expression of the root angle θ0 and the generalised
+surface normal, a normal-drag area, a drag coefficient and a net-buoyancy volume. Chordwise flaps
+add a fold angle per link whose flap points move out of the plane (z); spanwise flaps put a
+one-way hinge at l_root, the part inside it held rigid by the support. Every point's position is a CasADi expression of the root angle θ0 and the generalised
 coordinates Q, so velocities, accelerations and the mass matrix follow from exact Jacobians:
 
     M(Q) Q̈ = Σ_p [J_pᵀ F_p − b_p] − τ_internal,   M = Σ_p J_pᵀ (m_p I + m_a,p n_p n_pᵀ) J_p,
@@ -212,6 +212,8 @@ def feather_model(morphology: str = "plain", n_units: int = 10, root_support: bo
     drag_thrust = sum(d.drag[1] for d in dynamics)
     thrust = drag_thrust - sum(d.momentum_rate(Q_accel)[1] for d in dynamics)
     momentum_y = sum(d.momentum()[1] for d in dynamics)
+    # ∂(momentum_y)/∂U: what the body's acceleration U̇ would add to the root force, −surge_mass·U̇.
+    surge_mass = sum(pt.mass_kg + pt.added_mass_kg * pt.normal[1] ** 2 for pt in points)
     kinetic_energy = sum(d.kinetic_energy() for d in dynamics)
     # Buoyancy energy counted from the position of least potential a point can reach (no point is
     # farther than l + w from the root), so that the energy is never negative.
@@ -240,12 +242,16 @@ def feather_model(morphology: str = "plain", n_units: int = 10, root_support: bo
         Variable("mechanical_energy_J", "J", "structure and fluid kinetic, elastic and buoyancy energy (root frame)"),
         Variable("drag_thrust_N", "N", "the drag part of thrust_N (the rest, the momentum change, averages to zero)"),
         Variable("momentum_y_Ns", "N.s", "structure momentum plus fluid impulse along +y (root frame)"),
+        Variable("surge_mass_kg", "kg",
+                 "mass that moves with the root along y, structure plus the added mass of each point's normal "
+                 "along y; a body carrying the feather adds it to its inertia (thrust_N is the force on a root "
+                 "that does not accelerate)"),
     )
     # Merge structurally equal subexpressions built separately per point: halves the generated C.
     xdot, outputs_expr = ca.vertsplit(
         ca.cse(ca.vertcat(Q_rate, Q_accel, thrust, root_torque, tip[0], tip[1], fold_angle,
-                          kinetic_energy + elastic_energy + buoyancy_energy, drag_thrust, momentum_y)),
-        [0, 2 * Q.numel(), 2 * Q.numel() + 8])
+                          kinetic_energy + elastic_energy + buoyancy_energy, drag_thrust, momentum_y, surge_mass)),
+        [0, 2 * Q.numel(), 2 * Q.numel() + 9])
     return Model(
         name=f"feather_{morphology}",
         description=f"{morphology} feather, {n_units} units, flapped at the root in water",

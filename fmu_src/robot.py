@@ -2,8 +2,8 @@
 
 Kinematics are exact derivatives of the closed-form rocker angle: ω4 = θ4'(θ2) ω2 and
 α4 = θ4''(θ2) ω2² + θ4'(θ2) α2. An ideal linkage conserves power, so the servo feels the sum of
-the feather root torques times θ4'. The body (mass plus added mass) is pushed by both feathers'
-thrust and held back by quadratic body drag, rail Coulomb friction (smoothed with tanh) and
+the feather root torques times θ4'. The body (mass plus added mass plus the feathers' surge mass)
+is pushed by both feathers' thrust and held back by quadratic body drag, rail Coulomb friction (smoothed with tanh) and
 viscous rail friction (physics spec §6; the paper gives no robot parameters, these are estimates).
 """
 from __future__ import annotations
@@ -40,6 +40,7 @@ def robot_model() -> Model:
     position, speed = ca.SX.sym("x"), ca.SX.sym("v")
     crank, crank_rate, crank_accel = ca.SX.sym("th2"), ca.SX.sym("w2"), ca.SX.sym("a2")
     thrust_left, thrust_right, torque_left, torque_right = (ca.SX.sym(n) for n in ("TL", "TR", "QL", "QR"))
+    surge_left, surge_right = ca.SX.sym("ML"), ca.SX.sym("MR")
 
     theta2 = P["crank_neutral_rad"] + crank
     theta4 = rocker_angle(theta2, a, b, c, d)
@@ -51,7 +52,12 @@ def robot_model() -> Model:
 
     drag = 0.5 * P["water_density_kg_m3"] * P["body_drag_coeff"] * P["body_frontal_area_m2"] * ca.fabs(speed) * speed
     friction = P["rail_coulomb_N"] * ca.tanh(speed / P["rail_coulomb_speed_m_s"]) + P["rail_viscous_Ns_m"] * speed
-    body_accel = (thrust_left + thrust_right - drag - friction) / (P["body_mass_kg"] + P["body_added_mass_kg"])
+    # The feathers' thrust is their force on a root that does not accelerate; the rest of the root
+    # force, −surge_mass·U̇ (their structure and the water their surfaces push along y), joins the
+    # body's inertia. Fed back as a thrust term instead, it would close an algebraic loop and, with
+    # U̇ left out, put a spurious mean force on the body (docs/model.md, Robot).
+    inertia = P["body_mass_kg"] + P["body_added_mass_kg"] + surge_left + surge_right
+    body_accel = (thrust_left + thrust_right - drag - friction) / inertia
 
     def linkage_closes(values: Mapping[str, float]) -> None:
         check_linkage(values["crank_m"], values["coupler_m"], values["rocker_m"], values["ground_m"],
@@ -72,6 +78,8 @@ def robot_model() -> Model:
             Variable("thrust_right_N", "N", "right feather thrust along the rail"),
             Variable("root_torque_left_Nm", "N.m", "left feather root torque"),
             Variable("root_torque_right_Nm", "N.m", "right feather root torque"),
+            Variable("surge_mass_left_kg", "kg", "left feather's mass along the rail, structure plus added mass", 0.0),
+            Variable("surge_mass_right_kg", "kg", "right feather's mass along the rail, structure plus added mass", 0.0),
         ),
         parameters=parameters,
         outputs=(
@@ -81,11 +89,15 @@ def robot_model() -> Model:
             Variable("servo_load_torque_Nm", "N.m", "torque the feathers demand at the servo"),
             Variable("body_position_m", "m", "body position along the rail"),
             Variable("body_speed_m_s", "m/s", "body speed along the rail"),
+            Variable("feather_force_left_N", "N",
+                     "force along the rail the left feather puts on the accelerating body (its load-cell reading)"),
         ),
         x=ca.vertcat(position, speed),
-        u=ca.vertcat(crank, crank_rate, crank_accel, thrust_left, thrust_right, torque_left, torque_right),
+        u=ca.vertcat(crank, crank_rate, crank_accel, thrust_left, thrust_right, torque_left, torque_right,
+                     surge_left, surge_right),
         p=p,
         xdot=ca.vertcat(speed, body_accel),
-        y=ca.vertcat(root_angle, root_rate, root_accel, gain * (torque_left + torque_right), position, speed),
+        y=ca.vertcat(root_angle, root_rate, root_accel, gain * (torque_left + torque_right), position, speed,
+                     thrust_left - surge_left * body_accel),
         constraints=(linkage_closes,),
     )

@@ -87,9 +87,9 @@ def test_robot_root_rate_and_accel_are_exact_derivatives():
     f = robot.function()
     p = robot.parameter_vector()
     def root(th):
-        return float(f([0, 0], [th, 0, 0, 0, 0, 0, 0], p)[1][0])
+        return float(f([0, 0], [th, 0, 0, 0, 0, 0, 0, 0, 0], p)[1][0])
     th, w, al, h = 0.3, 1.7, -4.0, 1e-5
-    y = np.array(f([0, 0], [th, w, al, 0, 0, 0, 0], p)[1]).ravel()
+    y = np.array(f([0, 0], [th, w, al, 0, 0, 0, 0, 0, 0], p)[1]).ravel()
     gain = (root(th + h) - root(th - h)) / (2 * h)
     slope = (root(th + h) - 2 * root(th) + root(th - h)) / h**2
     assert y[1] == pytest.approx(gain * w, rel=1e-6)
@@ -121,6 +121,8 @@ def test_non_physical_parameters_are_refused(kind, options, parameter, value, pa
     ({"morphology": "plain", "n_units": 1}, "n_units"),
     ({"morphology": "wavy"}, "morphology"),
     ({"colour": "red"}, "build option"),
+    ({"morphology": "plain", "root_support": True}, "root_support applies to the spanwise"),
+    ({"morphology": "spanwise", "root_support": "yes"}, "root_support = 'yes' must be true or false"),
 ])
 def test_bad_build_options_are_refused(options, pattern):
     with pytest.raises(ModelError, match=pattern):
