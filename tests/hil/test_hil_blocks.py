@@ -139,14 +139,16 @@ def test_close_commands_the_safe_position_when_the_link_is_up(emulator):
     servo.close()        # idempotent
 
 
-def test_close_never_raises_when_the_link_is_down(make_emulator):
+def test_close_never_raises_when_the_link_is_down_and_gives_up_at_its_deadline(make_emulator):
     emu = make_emulator()
-    servo = Servo("servo", emu.servo_url, timeout_s=T)
+    servo = Servo("servo", emu.servo_url, timeout_s=T, safe_timeout_s=0.5)
     servo.start(0.0)
     emu.stop()
     t = time.monotonic()
     servo.close()
-    assert time.monotonic() - t < 1.0
+    # It keeps trying (the device may come back) until safe_timeout_s, then reports failure.
+    assert 0.4 < time.monotonic() - t < 3.0
+    assert servo.safe_confirmed is False
 
 
 def test_lost_emulator_raises_a_fault_naming_device_fault_and_time(make_emulator):
