@@ -31,6 +31,8 @@ from hil.registers import Function, NumberField
 log = logging.getLogger(__name__)
 T = TypeVar("T")
 _RETRY_PAUSE_S = 0.02   # between recovery attempts: quick, without hammering a rebooting device
+# What a slow or still-booting device looks like at start; worth retrying for start_retry_s.
+_SLOW_START_FAULTS = (Fault.CONNECT, Fault.TIMEOUT, Fault.LINK_LOST)
 
 
 @dataclass(frozen=True)
@@ -144,6 +146,8 @@ class ModbusDevice:
             last = signal
         budget_s, label = ((self.start_retry_s, "start_retry_s") if self._starting
                            else (self.reconnect_s, "reconnect_s"))
+        if self._starting and last.fault not in _SLOW_START_FAULTS:
+            budget_s = None   # an overload or a bad value at start is not slowness: stop now
         if budget_s is None:
             raise DeviceFault(self.name, last.fault, t_s, last.detail)
         log.warning("%s: %s at t=%.4f s (%s); recovering for up to %g s", self.name,
