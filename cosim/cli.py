@@ -97,7 +97,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
                               allow_unactuated=args.allow_unactuated_loadcell)
     try:
         with _stop_signals():
-            result = run_scene(scene, overrides, outputs=outputs, progress=not args.quiet)
+            result = run_scene(scene, overrides, outputs=outputs, progress=not args.quiet,
+                               strict_window=True)
     except StepError as exc:
         where = ""
         if exc.partial is not None and args.out:
@@ -155,7 +156,8 @@ def build_parser() -> argparse.ArgumentParser:
                           "URL modbus-tcp://HOST:PORT?unit=N or modbus-rtu:///dev/ttyUSB0?baudrate=...; the run "
                           "is then paced on the wall clock (try it against `featherstar emulate`). URL "
                           "options: unit=N, timeout_s=S (per request, default 0.05), reconnect_s=S (recover "
-                          "a lost device for up to S seconds; default: stop)")
+                          "a lost device for up to S seconds; default: stop), safe_timeout_s=S (servo: retry the safe "
+                          "position on stop, default 5); see docs/hil.md")
     run.add_argument("--allow-unactuated-loadcell", action="store_true",
                      help="allow --hardware loadcell without --hardware servo (nothing physical then "
                           "moves the feather the cell reads; the summary carries a warning)")

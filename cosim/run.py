@@ -20,6 +20,7 @@ from .master import RunContext, make_context
 from .strong import run_strong
 from .weak import run_weak
 from .metrics import scene_metrics
+from .preflight import cached_fmu, check_metric_window, check_run_size
 from .validity import apply_validity
 from .scene import Scene, load_scene
 from .units import ModelUnit, PyUnit, Unit
@@ -60,7 +61,7 @@ def _build_units(plan: Plan) -> dict[str, Unit]:
             except ImportError as exc:
                 raise SceneError(f"block '{name}': FMU export is not available ({exc}); "
                                  "set master.backend = casadi to run models in-process") from None
-            path = build_fmu(rb.model)
+            path = cached_fmu(rb.model, build_fmu, f"block '{name}'")
             info = model_fmu_info(rb.model, Path(path), name)
             units[name] = FmuUnit(name, info, rb.parameters, _fmu_mode(master.coupling, info, name))
         elif rb.fmu_info is not None:
@@ -102,11 +103,14 @@ def run_scene(
     *,
     outputs: Sequence[str] | None = None,
     progress: bool = False,
+    strict_window: bool = False,
 ) -> RunResult:
     """Run a scene (name, path or Scene) with "block.param" overrides.
 
     outputs: signals to record ("block.port"); default: the recorders' signals. The metrics'
     signals are always recorded. Only blocks feeding these signals are instantiated.
+    strict_window: refuse a settling time that leaves no whole period to measure (the command
+    line does; short API runs may measure what is there).
     Raises SceneError before anything runs, StepError on a failure during the run (with
     `.partial`, a RunResult of what was computed so far). An interrupt (Ctrl-C, or
     RunInterrupted from a signal handler) and an unexpected exception inside the master become a
@@ -119,6 +123,9 @@ def run_scene(
     base = load_scene(scene)
     sc = base.with_overrides(overrides)
     plan = make_plan(sc, outputs)
+    check_run_size(plan)
+    if strict_window or sc.master.realtime:
+        check_metric_window(plan)
     t0, t_end = 0.0, plan.t_end_s
     t_build = time.perf_counter()
     units = _build_units(plan)
