@@ -190,9 +190,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except FeatherstarError as exc:
         print(f"featherstar: error: {_one_line(exc)}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print("featherstar: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:   # before or after a run: nothing to keep
+        name = getattr(exc, "signal_name", "SIGINT")
+        print(f"featherstar: interrupted by {name}", file=sys.stderr)
+        return _EXIT_FOR_SIGNAL.get(name, 130)
 
 
 if __name__ == "__main__":  # pragma: no cover

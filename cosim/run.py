@@ -212,7 +212,9 @@ def _realtime_summary(plan: Plan, ctx: RunContext, units: Mapping[str, Unit], t:
 def _result(plan: Plan, ctx: RunContext, wall: float, overrides: Mapping[str, Any] | None,
             error: StepError | None, units: Mapping[str, Unit] | None = None) -> RunResult:
     sc = plan.scene
-    n = len(ctx.rows)
+    # An interrupt can land between a time stamp and its row: keep whole samples only.
+    n = min(len(ctx.rows), len(ctx.times))
+    del ctx.rows[n:], ctx.times[n:]
     t = np.asarray(ctx.times, dtype=float)
     data = np.asarray(ctx.rows, dtype=float).reshape(n, len(plan.requested))
     signals = {str(ref): data[:, j].copy() for j, ref in enumerate(plan.requested)}
