@@ -106,6 +106,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
             where = f"; partial results up to t={exc.t_s:.6g} s in {paths['results'].parent}"
         elif exc.partial is not None:
             where = "; nothing kept (no --out)"
+        unsafe = [name for name, ok in ((exc.partial.summary if exc.partial else {})
+                                        .get("safe_position_confirmed") or {}).items() if not ok]
+        if unsafe:
+            where += f"; WARNING: {', '.join(unsafe)} did not acknowledge its safe position"
         print(f"featherstar: error: {_one_line(exc)}{where}", file=sys.stderr)
         return _EXIT_FOR_SIGNAL.get(exc.interrupted or "", 2)
     print(summary_table(result.summary))

@@ -135,3 +135,18 @@ def test_allow_remote_binds_with_a_warning(tmp_path):
             proc.wait(10)
             proc.stdout.close()
     assert "WARNING: serving on 0.0.0.0" in err_path.read_text()
+
+
+@pytest.mark.hil
+def test_fmu_plant_reset_starts_fresh_instances_at_rest():
+    from hil.fmu_plant import FmuPlant
+
+    plant = FmuPlant("plain")
+    plant.set_setpoint_rad(0.5)
+    plant.advance(0.2)
+    moved = plant.angle_rad
+    plant.reset()
+    assert moved > 0.3 and plant.angle_rad == 0.0 and plant.thrust_N == 0.0
+    plant.set_setpoint_rad(0.5)
+    plant.advance(0.2)
+    assert plant.angle_rad == pytest.approx(moved, rel=1e-9)   # the same physics again

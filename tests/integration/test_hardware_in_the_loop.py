@@ -82,9 +82,13 @@ def test_cli_writes_partial_results_and_the_fault_when_the_device_dies(tmp_path)
     finally:
         killer.cancel()
         emulator.stop()
-    assert done.returncode != 0
+    assert done.returncode == 2
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["failed_block"] in ("servo", "loadcell_hw") and "error" in summary
+    # The device is gone for good: the safe position cannot be confirmed, and the one line says so.
+    assert summary["safe_position_confirmed"] == {"servo": False}
+    line = [ln for ln in done.stderr.splitlines() if ln.startswith("featherstar:")]
+    assert len(line) == 1 and "servo did not acknowledge its safe position" in line[0]
     rows = (tmp_path / "results.csv").read_text().splitlines()
     assert len(rows) > 100 and "loadcell_hw.thrust_N" in rows[0]
 
