@@ -21,7 +21,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from .metrics import _clip, signed_integrals
+from .metrics import thrust_metrics
 
 MAX_LATE_S = 0.05          # 12 steps at 250 Hz: the servo can travel 0.3 rad on a stale command
 MAX_MISS_FRACTION = 0.1    # isolated misses of a loaded machine are jitter, a tenth is not
@@ -71,8 +71,9 @@ def valid_thrust_metrics(t: np.ndarray, thrust: np.ndarray, period_s: float,
     for v in verdicts:
         if v.reasons:
             continue
-        p, q = signed_integrals(*_clip(t, thrust, v.start_s, v.start_s + period_s))
-        pos, neg, n = pos + p, neg + q, n + 1
+        m = thrust_metrics(t, thrust, v.start_s, v.start_s + period_s, None, 0)
+        pos, neg = pos + m["positive_impulse_Ns"], neg + m["negative_impulse_Ns"]
+        n += 1
     if n == 0:
         return {"thrust_ratio": math.nan, "mean_thrust_N": math.nan}
     return {"thrust_ratio": pos / neg if neg > 0 else math.inf,
