@@ -73,7 +73,7 @@ def emulate(args: argparse.Namespace) -> int:
         raise HILError(f"--noise-N {args.noise_N}: must be >= 0")
     if not (math.isfinite(args.idle_timeout_s) and args.idle_timeout_s > 0):
         raise HILError(f"--idle-timeout-s {args.idle_timeout_s}: must be a positive number")
-    if not _is_loopback(args.host):
+    if not is_loopback(args.host):
         if not args.allow_remote:
             raise HILError(f"--host {args.host}: not a loopback address; Modbus has no "
                            "authentication, so binding it needs --allow-remote")
@@ -103,7 +103,8 @@ def emulate(args: argparse.Namespace) -> int:
     return 0
 
 
-def _is_loopback(host: str) -> bool:
+def is_loopback(host: str) -> bool:
+    """Whether binding `host` keeps the emulator on this machine (a name may resolve anywhere)."""
     if host == "localhost":
         return True
     try:

@@ -150,3 +150,12 @@ def test_fmu_plant_reset_starts_fresh_instances_at_rest():
     plant.set_setpoint_rad(0.5)
     plant.advance(0.2)
     assert plant.angle_rad == pytest.approx(moved, rel=1e-9)   # the same physics again
+
+
+@pytest.mark.parametrize("host, loopback", [("127.0.0.1", True), ("127.0.0.2", True),
+                                            ("::1", True), ("localhost", True),
+                                            ("0.0.0.0", False), ("::", False)])
+def test_only_loopback_counts_as_local(host, loopback):
+    from hil.cli import is_loopback
+
+    assert is_loopback(host) is loopback

@@ -292,3 +292,17 @@ def test_50_clients_times_100_requests_get_every_reply_right(float_emulator):
         t.join(120)
     assert errors == []
     assert float_emulator.emulator.requests >= n_clients * n_requests
+
+
+def test_the_log_limit_counts_what_it_suppressed(caplog):
+    from hil.modbus_server import RateLimitedLog
+
+    caplog.set_level(logging.INFO, logger="hil.modbus_server")
+    limited = RateLimitedLog(burst=3, window_s=0.05, max_chars=10)
+    for i in range(50):
+        limited(logging.WARNING, f"garbage frame number {i}")
+    time.sleep(0.06)
+    limited(logging.WARNING, "after the window")
+    messages = [r.getMessage() for r in caplog.records]
+    assert messages[:3] == ["garbage fr"] * 3
+    assert messages[3] == "47 log lines suppressed in the last 0 s" and messages[4] == "after the "
