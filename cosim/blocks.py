@@ -403,10 +403,12 @@ class FmuKind(BlockKind):
 
     def _resolve_file(self, spec: BlockSpec, fmu_ref: str) -> ResolvedBlock:
         from .fmu_block import read_fmu_info
+        from .preflight import check_fmu_archive
 
         path = Path(fmu_ref).expanduser()
         if not path.exists():
             raise SceneError(f"{_where(spec)}: FMU file '{fmu_ref}' does not exist")
+        check_fmu_archive(path, _where(spec))
         info = read_fmu_info(path, spec.name)
         params = {**dict(spec.settings.get("parameters", {})), **spec.overrides}
         if "options" in spec.settings:

@@ -3,10 +3,15 @@ through `register(subparsers)` (fmu_src: build; optimizer; hil), each handler be
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
+import logging
+import signal
 import sys
+import tempfile
+import threading
 from pathlib import Path
-from typing import Sequence
+from typing import Iterator, Sequence
 
 from fmu_src.errors import FeatherstarError
 
@@ -23,6 +28,50 @@ def _parse_set(items: Sequence[str]) -> dict[str, str]:
     return out
 
 
+def _check_out_dir(out: Path) -> None:
+    """Refuse an --out that cannot be written before the run, not after it."""
+    from .errors import SceneError
+
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=out, prefix=".featherstar-write-test"):
+            pass
+    except OSError as exc:
+        raise SceneError(f"--out {out}: cannot write there ({exc.strerror or exc})") from None
+
+
+_EXIT_FOR_SIGNAL = {"SIGINT": 130, "SIGTERM": 143, "SIGHUP": 129}
+
+
+@contextlib.contextmanager
+def _stop_signals() -> Iterator[None]:
+    """SIGINT/SIGTERM/SIGHUP stop the run once, as Ctrl-C does (so blocks are closed and the
+    servo commanded to its safe position); repeats while that happens are only reported, so a
+    second Ctrl-C cannot cut the safe stop short."""
+    from .errors import RunInterrupted
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    fired: list[str] = []
+
+    def handler(signum: int, _frame: object) -> None:
+        name = signal.Signals(signum).name
+        if fired:
+            print(f"featherstar: {name} received, still stopping safely", file=sys.stderr)
+            return
+        fired.append(name)
+        raise RunInterrupted(name)
+
+    names = [n for n in _EXIT_FOR_SIGNAL if hasattr(signal, n)]
+    previous = {n: signal.signal(getattr(signal, n), handler) for n in names}
+    try:
+        yield
+    finally:
+        for n, h in previous.items():
+            signal.signal(getattr(signal, n), h)
+
+
 def _cmd_run(args: argparse.Namespace) -> int:
     from .report import summary_table, write_outputs
     from .run import run_scene
@@ -34,26 +83,54 @@ def _cmd_run(args: argparse.Namespace) -> int:
         print(f"featherstar run: {exc}", file=sys.stderr)
         return 2
     outputs = args.record.split(",") if args.record else None
+    if args.out:
+        _check_out_dir(args.out)
     scene = args.scene
     if args.hardware:
         from .hardware import parse_hardware, with_hardware
         from .scene import load_scene
 
-        scene = with_hardware(load_scene(args.scene), parse_hardware(args.hardware))
+        # The hardware blocks report every fault themselves (one line, with device and time);
+        # pymodbus' own log of the same event would only bury it.
+        logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
+        scene = with_hardware(load_scene(args.scene), parse_hardware(args.hardware),
+                              allow_unactuated=args.allow_unactuated_loadcell)
     try:
-        result = run_scene(scene, overrides, outputs=outputs, progress=not args.quiet)
+        with _stop_signals():
+            result = run_scene(scene, overrides, outputs=outputs, progress=not args.quiet,
+                               strict_window=True)
     except StepError as exc:
+        where = ""
         if exc.partial is not None and args.out:
             paths = write_outputs(exc.partial, args.out, figure=not args.no_figure)
-            print(f"partial results up to t={exc.t_s:.6g} s written to {paths['results'].parent}", file=sys.stderr)
-        raise
+            where = f"; partial results up to t={exc.t_s:.6g} s in {paths['results'].parent}"
+        elif exc.partial is not None:
+            where = "; nothing kept (no --out)"
+        unsafe = [name for name, ok in ((exc.partial.summary if exc.partial else {})
+                                        .get("safe_position_confirmed") or {}).items() if not ok]
+        if unsafe:
+            where += f"; WARNING: {', '.join(unsafe)} did not acknowledge its safe position"
+        print(f"featherstar: error: {_one_line(exc)}{where}", file=sys.stderr)
+        return _EXIT_FOR_SIGNAL.get(exc.interrupted or "", 2)
     print(summary_table(result.summary))
     for note in result.info.get("notes", []):
         print(f"  note: {note}")
     if args.out:
         paths = write_outputs(result, args.out, figure=not args.no_figure)
         print(f"wrote {', '.join(str(p) for p in paths.values())}")
+    if not result.complete:
+        print(f"featherstar: error: run incomplete: {result.summary.get('incomplete_reason')}"
+              " (see the summary)", file=sys.stderr)
+        return 2
     return 0
+
+
+def _one_line(exc: BaseException) -> str:
+    # Drop the "  - " bullets of multi-problem errors, not the dashes of an option's name.
+    lines = [ln.strip().removeprefix("- ").strip() for ln in str(exc).splitlines() if ln.strip()]
+    if not lines:
+        return type(exc).__name__
+    return lines[0] + (" " + "; ".join(lines[1:]) if len(lines) > 1 else "")
 
 
 def _cmd_scenes(args: argparse.Namespace) -> int:
@@ -81,7 +158,13 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--hardware", action="append", default=[], metavar="SLOT=URL",
                      help="swap a simulated block for hardware (repeatable): servo=URL, loadcell=URL, with "
                           "URL modbus-tcp://HOST:PORT?unit=N or modbus-rtu:///dev/ttyUSB0?baudrate=...; the run "
-                          "is then paced on the wall clock (try it against `featherstar emulate`)")
+                          "is then paced on the wall clock (try it against `featherstar emulate`). URL "
+                          "options: unit=N, timeout_s=S (per request, default 0.05), reconnect_s=S (recover "
+                          "a lost device for up to S seconds; default: stop), safe_timeout_s=S (servo: retry the safe "
+                          "position on stop, default 5); see docs/hil.md")
+    run.add_argument("--allow-unactuated-loadcell", action="store_true",
+                     help="allow --hardware loadcell without --hardware servo (nothing physical then "
+                          "moves the feather the cell reads; the summary carries a warning)")
     run.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     run.set_defaults(func=_cmd_run)
     scenes = sub.add_parser("scenes", help="list the shipped scenes")
@@ -109,13 +192,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return int(args.func(args) or 0)
     except FeatherstarError as exc:
-        lines = [ln.strip().lstrip("- ").strip() for ln in str(exc).splitlines() if ln.strip()]
-        text = lines[0] + (" " + "; ".join(lines[1:]) if len(lines) > 1 else "") if lines else type(exc).__name__
-        print(f"featherstar: error: {text}", file=sys.stderr)
+        print(f"featherstar: error: {_one_line(exc)}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print("featherstar: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:   # before or after a run: nothing to keep
+        name = getattr(exc, "signal_name", "SIGINT")
+        print(f"featherstar: interrupted by {name}", file=sys.stderr)
+        return _EXIT_FOR_SIGNAL.get(name, 130)
 
 
 if __name__ == "__main__":  # pragma: no cover

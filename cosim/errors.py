@@ -15,7 +15,16 @@ from typing import Any, Sequence
 
 from fmu_src.errors import FeatherstarError
 
-__all__ = ["FeatherstarError", "SceneError", "StepError"]
+__all__ = ["FeatherstarError", "RunInterrupted", "SceneError", "StepError"]
+
+
+class RunInterrupted(KeyboardInterrupt):
+    """Raised by a signal handler (SIGTERM, SIGHUP) to stop a run the way Ctrl-C does: a
+    KeyboardInterrupt, so no `except Exception` on the way swallows it."""
+
+    def __init__(self, signal_name: str) -> None:
+        super().__init__(signal_name)
+        self.signal_name = signal_name
 
 
 class SceneError(FeatherstarError):
@@ -50,6 +59,7 @@ class StepError(FeatherstarError):
         self.cause = cause
         self.message = message
         self.partial: Any = None  # a RunResult with what was computed up to the failure
+        self.interrupted: str | None = None  # the signal's name when stopped from outside
         text = f"block '{block}' at t={t_s:.6g} s"
         if function:
             text += f" in {function}"

@@ -180,6 +180,7 @@ def plan(scene: Scene, outputs: Sequence[str] | None = None) -> Plan:
     for ref in [*requested, *metric_refs]:
         check_output(ref, f"signal {ref}")
     problems.extend(scene.master.check())
+    problems.extend(scene.metrics.check())
     if problems:
         raise SceneError(problems, scene.name)
     for ref in metric_refs:

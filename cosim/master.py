@@ -55,6 +55,7 @@ class RunContext:
     loop_solvers: list[LoopSolver] = field(default_factory=list)
     stats: dict[str, Any] = field(default_factory=dict)
     guards: list[PassiveEnergyGuard] = field(default_factory=list)
+    late_steps: list[tuple[float, float]] = field(default_factory=list)  # realtime: (t, late_s)
 
     def loop_block(self, solver: LoopSolver) -> str:
         return ",".join(dict.fromkeys(u.name for u, _, _, _ in solver.tear))

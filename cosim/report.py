@@ -35,9 +35,37 @@ def summary_table(summary: dict[str, Any]) -> str:
     per = summary.get("per_period_thrust_ratio")
     if per:
         lines.append(f"  {'TR per period':<30} " + ", ".join(f"{v:.3f}" for v in per))
+    lines += _realtime_lines(summary)
     if "error" in summary:
         lines.append(f"  FAILED: {summary['error']}")
     return "\n".join(lines)
+
+
+def _realtime_lines(summary: dict[str, Any]) -> list[str]:
+    """What a hardware run must not hide: misses, gaps, reconnects, excluded periods, the
+    safe position, and why a run is not complete."""
+    lines = []
+    if summary.get("deadline_misses"):
+        lines.append(f"  {'deadline misses':<30} {summary['deadline_misses']} "
+                     f"(worst {1e3 * summary.get('worst_lateness_s', 0.0):.1f} ms late)")
+    for key, label in (("gaps", "data gaps (device recovered)"), ("reconnects", "reconnects")):
+        if summary.get(key):
+            lines.append(f"  {label:<30} {summary[key]}")
+    validity = summary.get("validity") or {}
+    for bad in validity.get("invalid_periods", []):
+        lines.append(f"  {'excluded period ' + str(bad['period']):<30} "
+                     + "; ".join(bad["reasons"][:3]))
+    if validity.get("invalid_periods"):
+        lines.append(f"  {'valid periods':<30} {validity['valid_periods']} "
+                     f"(TR and mean thrust use these only)")
+    for name, ok in (summary.get("safe_position_confirmed") or {}).items():
+        if not ok:
+            lines.append(f"  WARNING: {name} did not acknowledge its safe position")
+    for warning in summary.get("warnings", []):
+        lines.append(f"  WARNING: {warning}")
+    if "incomplete_reason" in summary:
+        lines.append(f"  INCOMPLETE: {summary['incomplete_reason']}")
+    return lines
 
 
 def _jsonable(v: Any) -> Any:

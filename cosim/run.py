@@ -14,12 +14,14 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from .errors import SceneError, StepError
+from .errors import RunInterrupted, SceneError, StepError
 from .graph import Plan, plan as make_plan
 from .master import RunContext, make_context
 from .strong import run_strong
 from .weak import run_weak
 from .metrics import scene_metrics
+from .preflight import cached_fmu, check_metric_window, check_run_size
+from .validity import apply_validity
 from .scene import Scene, load_scene
 from .units import ModelUnit, PyUnit, Unit
 
@@ -59,7 +61,7 @@ def _build_units(plan: Plan) -> dict[str, Unit]:
             except ImportError as exc:
                 raise SceneError(f"block '{name}': FMU export is not available ({exc}); "
                                  "set master.backend = casadi to run models in-process") from None
-            path = build_fmu(rb.model)
+            path = cached_fmu(rb.model, build_fmu, f"block '{name}'")
             info = model_fmu_info(rb.model, Path(path), name)
             units[name] = FmuUnit(name, info, rb.parameters, _fmu_mode(master.coupling, info, name))
         elif rb.fmu_info is not None:
@@ -101,18 +103,29 @@ def run_scene(
     *,
     outputs: Sequence[str] | None = None,
     progress: bool = False,
+    strict_window: bool = False,
 ) -> RunResult:
     """Run a scene (name, path or Scene) with "block.param" overrides.
 
     outputs: signals to record ("block.port"); default: the recorders' signals. The metrics'
     signals are always recorded. Only blocks feeding these signals are instantiated.
+    strict_window: refuse a settling time that leaves no whole period to measure (the command
+    line does; short API runs may measure what is there).
     Raises SceneError before anything runs, StepError on a failure during the run (with
-    `.partial`, a RunResult of what was computed so far).
+    `.partial`, a RunResult of what was computed so far). An interrupt (Ctrl-C, or
+    RunInterrupted from a signal handler) and an unexpected exception inside the master become a
+    StepError of block 'master' too, after every started block was closed (a hardware servo
+    commands its safe position on close): no path leaves the bench running or loses the data.
+    A real-time run whose metric window has too few valid periods (cosim.validity) returns
+    with `complete = False`.
     """
     wall0 = time.perf_counter()
     base = load_scene(scene)
     sc = base.with_overrides(overrides)
     plan = make_plan(sc, outputs)
+    check_run_size(plan)
+    if strict_window or sc.master.realtime:
+        check_metric_window(plan)
     t0, t_end = 0.0, plan.t_end_s
     t_build = time.perf_counter()
     units = _build_units(plan)
@@ -133,12 +146,20 @@ def run_scene(
             run_weak(ctx, t0, t_end)
     except StepError as exc:
         error = exc
+    except KeyboardInterrupt as exc:   # Ctrl-C, or RunInterrupted raised by a signal handler
+        cause = exc.signal_name if isinstance(exc, RunInterrupted) else "SIGINT"
+        error = StepError("master", ctx.t, f"interrupted by {cause}",
+                          cause="the run was stopped from outside")
+        error.interrupted = cause
+    except Exception as exc:   # a bug must still close the blocks and keep the data
+        error = StepError("master", ctx.t, f"internal error: {type(exc).__name__}: {exc}",
+                          cause="a defect in featherstar; please report it with the scene")
     finally:
         for u in started:
             u.close()
         if bar is not None:
             bar.close()
-    result = _result(plan, ctx, time.perf_counter() - wall0, overrides, error)
+    result = _result(plan, ctx, time.perf_counter() - wall0, overrides, error, units)
     if error is not None:
         error.partial = result
         raise error
@@ -154,14 +175,51 @@ def _loop_stats(ctx: RunContext) -> list[dict[str, Any]]:
     return list(merged.values())
 
 
-def _result(plan: Plan, ctx: RunContext, wall: float, overrides: Mapping[str, Any] | None,
-            error: StepError | None) -> RunResult:
+def _hardware_events(units: Mapping[str, Unit]) -> list[dict[str, Any]]:
+    """Recoveries and reconnects the hardware blocks noted (their `events` list), by time."""
+    events = [dict(e) for u in units.values()
+              for e in getattr(getattr(u, "block", None), "events", None) or ()]
+    return sorted(events, key=lambda e: float(e.get("t_s", 0.0)))
+
+
+def _realtime_summary(plan: Plan, ctx: RunContext, units: Mapping[str, Unit], t: np.ndarray,
+                      signals: Mapping[str, np.ndarray], summary: dict[str, Any],
+                      finished: bool) -> bool:
+    """Deadline misses, gaps and reconnects into the summary; the validity verdict when the
+    run finished. Returns whether the run's result can be trusted."""
     sc = plan.scene
-    n = len(ctx.rows)
+    events = _hardware_events(units)
+    late = ctx.late_steps
+    summary["deadline_misses"] = len(late)
+    summary["worst_lateness_s"] = max((s for _, s in late), default=0.0)
+    summary["gaps"] = sum(e.get("kind") == "gap" for e in events)
+    summary["reconnects"] = sum(e.get("kind") == "reconnect" for e in events)
+    summary["hardware_events"] = events[:100]   # bounded: a flapping link must not bloat it
+    warnings = [f"{name}: {w}" for name, u in units.items()
+                for w in getattr(getattr(u, "block", None), "warnings", None) or ()]
+    if warnings:
+        summary["warnings"] = warnings
+    safe = {name: u.block.safe_confirmed for name, u in units.items()
+            if getattr(getattr(u, "block", None), "safe_confirmed", None) is not None}
+    if safe:
+        summary["safe_position_confirmed"] = safe
+    if not finished:
+        return False
+    thrust = signals.get(sc.metrics.thrust) if sc.metrics.thrust else None
+    return apply_validity(summary, t, thrust, plan.period_s, sc.master.step_s, late, events)
+
+
+def _result(plan: Plan, ctx: RunContext, wall: float, overrides: Mapping[str, Any] | None,
+            error: StepError | None, units: Mapping[str, Unit] | None = None) -> RunResult:
+    sc = plan.scene
+    # An interrupt can land between a time stamp and its row: keep whole samples only.
+    n = min(len(ctx.rows), len(ctx.times))
+    del ctx.rows[n:], ctx.times[n:]
     t = np.asarray(ctx.times, dtype=float)
     data = np.asarray(ctx.rows, dtype=float).reshape(n, len(plan.requested))
     signals = {str(ref): data[:, j].copy() for j, ref in enumerate(plan.requested)}
-    units = {str(ref): plan.blocks[ref.block].outputs[ref.port].unit for ref in plan.requested}
+    port_units = {str(ref): plan.blocks[ref.block].outputs[ref.port].unit
+                  for ref in plan.requested}
     summary: dict[str, Any] = {
         "scene": sc.name,
         "coupling": sc.master.coupling,
@@ -177,6 +235,13 @@ def _result(plan: Plan, ctx: RunContext, wall: float, overrides: Mapping[str, An
         summary.update(scene_metrics(sc.metrics, plan.period_s, t, signals))
     if error is not None:
         summary.update(error=str(error), failed_block=error.block, failed_at_s=error.t_s)
+    complete = error is None
+    if sc.master.realtime:
+        trusted = _realtime_summary(plan, ctx, units or {}, t, signals, summary,
+                                    finished=error is None and n > 1)
+        if error is None and not trusted:
+            complete = False
+            summary["incomplete_reason"] = summary["validity"]["reason"]
     info = {
         "instantiated": list(plan.instantiate),
         "aliases": {k: v for k, v in plan.alias_of.items() if k != v},
@@ -189,4 +254,4 @@ def _result(plan: Plan, ctx: RunContext, wall: float, overrides: Mapping[str, An
         "scene_fingerprint": sc.fingerprint(),
     }
     summary["stats"] = info["stats"]
-    return RunResult(sc, t, signals, units, summary, info, complete=error is None)
+    return RunResult(sc, t, signals, port_units, summary, info, complete=complete)

@@ -255,6 +255,14 @@ class MetricsSpec:
     def signals(self) -> list[str]:
         return [s for s in (self.thrust, self.angle, self.speed, self.position) if s]
 
+    def check(self) -> list[str]:
+        problems = []
+        for name in ("settle_periods", "period_s"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0):
+                problems.append(f"metrics.{name} = {v!r} must be a finite number >= 0")
+        return problems
+
 
 @dataclass(frozen=True)
 class Scene:

@@ -95,6 +95,7 @@ def run_weak(ctx: RunContext, t0: float, t_end: float) -> None:
                 time.sleep(-lateness)
             elif lateness > h:
                 misses += 1
+                ctx.late_steps.append((t, lateness))   # cosim.validity judges the periods
             worst_lateness = max(worst_lateness, lateness)
         h_try = min(h, t_end - t)
         if t + h_try > t_end - 1e-9 * h_try:

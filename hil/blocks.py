@@ -28,6 +28,7 @@ log = logging.getLogger(__name__)
 
 MG996R_LIMITS_RAD = (-math.pi / 2, math.pi / 2)
 MG996R_RATE_RAD_S = 6.2      # 0.17 s / 60 deg at 4.8 V
+_SAFE_RETRY_PAUSE_S = 0.05   # between safe-position attempts: a rebooting device needs time
 
 
 class LoadCell(ModbusDevice):
@@ -39,13 +40,21 @@ class LoadCell(ModbusDevice):
     disables the check. unstable_s: the transmitter's "stable" bit clear for this long is
     a STALE fault; None (default) because a flapping feather keeps the cell in motion.
     tare_on_start: command a tare in start() (the feather must be at rest).
+
+    After a reconnect the tare is unknown: a transmitter that rebooted has forgotten it, and the
+    feather is moving, so it cannot be tared again. The "reconnect" event then carries
+    `tare_unknown`, and the master excludes every period from that time on (cosim.validity).
     """
 
     def __init__(self, name: str, url: str, map: str | Path = "loadcell-float32-abcd", *,
                  timeout_s: float = 0.05, reconnect_s: float | None = None,
                  stale_s: float | None = 2.0, unstable_s: float | None = None,
-                 tare_on_start: bool = True) -> None:
-        super().__init__(name, url, timeout_s=timeout_s, reconnect_s=reconnect_s)
+                 tare_on_start: bool = True, start_timeout_s: float = 1.0,
+                 start_retry_s: float = 5.0, warning: str | None = None) -> None:
+        super().__init__(name, url, timeout_s=timeout_s, reconnect_s=reconnect_s,
+                         start_timeout_s=start_timeout_s, start_retry_s=start_retry_s)
+        # What the run's summary must say about this measurement (e.g. nothing real drives it).
+        self.warnings: list[str] = [warning] if warning else []
         self.map = load_loadcell_map(map)
         if tare_on_start and self.map.tare is None:
             raise HILConfigError(f"{name}: register map {self.map.source} has no [tare]; "
@@ -71,10 +80,15 @@ class LoadCell(ModbusDevice):
     def start(self, t0_s: float) -> None:
         self._open()
         self._started = True
-        if self.tare_on_start:
-            self.tare(t0_s)
-        self._last_change_mono = self._last_stable_mono = time.monotonic()
-        self._guard(t0_s, self._sample)
+        with self._patient_start():
+            if self.tare_on_start:
+                self.tare(t0_s)
+            self._last_change_mono = self._last_stable_mono = time.monotonic()
+            self._guard(t0_s, self._sample)
+
+    def _on_reconnect(self, t_s: float) -> None:
+        self._note(t_s, "reconnect", f"new connection to {self.link.where}: the transmitter may "
+                                     "have rebooted and lost its tare", tare_unknown=True)
 
     def set_inputs(self, values: Mapping[str, float]) -> None:
         if values:
@@ -136,14 +150,26 @@ class Servo(ModbusDevice):
     1/dt and 1/dt^2). Without read-back, angle is the commanded (clamped, rate-limited) setpoint
     and rate/accel are its differences over h_s (`estimate_source == "setpoint"`), which assumes
     the servo keeps up; start() then commands `safe_rad`, the only position it can assume.
-    A [status] error bit is a DEVICE_ERROR fault. `close()` commands `safe_rad` and never raises.
+    A [status] error bit is a DEVICE_ERROR fault.
+
+    `close()` commands `safe_rad` and never raises: on a fresh connection (a stop may interrupt
+    a request half-way), retried until `safe_timeout_s` has passed, because a stalled or
+    rebooting device may come back. `safe_confirmed` says whether the device acknowledged it.
     """
 
     def __init__(self, name: str, url: str, map: str | Path = "servo-default", *,
                  timeout_s: float = 0.05, reconnect_s: float | None = None,
                  limits_rad: tuple[float, float] = MG996R_LIMITS_RAD,
-                 rate_limit_rad_s: float = MG996R_RATE_RAD_S, safe_rad: float = 0.0) -> None:
-        super().__init__(name, url, timeout_s=timeout_s, reconnect_s=reconnect_s)
+                 rate_limit_rad_s: float = MG996R_RATE_RAD_S, safe_rad: float = 0.0,
+                 safe_timeout_s: float = 5.0, start_timeout_s: float = 1.0,
+                 start_retry_s: float = 5.0) -> None:
+        super().__init__(name, url, timeout_s=timeout_s, reconnect_s=reconnect_s,
+                         start_timeout_s=start_timeout_s, start_retry_s=start_retry_s)
+        if not (isinstance(safe_timeout_s, (int, float)) and math.isfinite(safe_timeout_s)
+                and safe_timeout_s > 0):
+            raise HILConfigError(f"{name}: safe_timeout_s must be positive, got {safe_timeout_s!r}")
+        self.safe_timeout_s = float(safe_timeout_s)
+        self.safe_confirmed: bool | None = None
         self.map = load_servo_map(map)
         sp = self.map.setpoint
         lo, hi = float(limits_rad[0]), float(limits_rad[1])
@@ -189,12 +215,13 @@ class Servo(ModbusDevice):
         self._open()
         self._started = True
         self._enabled_generation = None
-        if self.map.position is not None:
-            self._guard(t0_s, self._read)
-            # Start from where the servo is, so the first step does not jump.
-            self._command_rad = self._target_rad = self.clamp(self._angle_rad)
-        self._rate_rad_s = self._accel_rad_s2 = 0.0
-        self._guard(t0_s, self._write)
+        with self._patient_start():
+            if self.map.position is not None:
+                self._guard(t0_s, self._read)
+                # Start from where the servo is, so the first step does not jump.
+                self._command_rad = self._target_rad = self.clamp(self._angle_rad)
+            self._rate_rad_s = self._accel_rad_s2 = 0.0
+            self._guard(t0_s, self._write)
 
     def set_inputs(self, values: Mapping[str, float]) -> None:
         unknown = set(values) - {"setpoint_rad"}
@@ -225,12 +252,13 @@ class Servo(ModbusDevice):
             self._angle_rad, self._rate_rad_s = self._command_rad, rate
 
     def close(self) -> None:
-        """Command the safe position if the link is up; never raises."""
+        """Command the safe position, retrying until safe_timeout_s; never raises."""
         try:
             if self._link is not None:
                 self._command_rad = self.safe_rad
-                self._write()
+                self.safe_confirmed = self._command_safe()
         except Exception as exc:   # close must not raise, whatever the bus does
+            self.safe_confirmed = False
             log.warning("%s: could not command the safe position %g rad on close: %s",
                         self.name, self.safe_rad, exc)
         finally:
@@ -239,6 +267,28 @@ class Servo(ModbusDevice):
                 self._release()
             except Exception as exc:
                 log.warning("%s: releasing the link failed: %s", self.name, exc)
+
+    def _command_safe(self) -> bool:
+        deadline = time.monotonic() + self.safe_timeout_s
+        last = "no attempt"
+        self.link.set_timeout(max(self.link.timeout_s, self.start_timeout_s))
+        # A fresh connection: a stop signal may have cut a request short, and its late reply
+        # must not be taken for the answer to the safe command.
+        self.link.reset()
+        while True:
+            try:
+                self._write()
+                return True
+            except FaultSignal as signal:
+                last = f"{signal.fault.value}: {signal.detail}"
+                self.link.reset()
+            if time.monotonic() + _SAFE_RETRY_PAUSE_S >= deadline:
+                break
+            time.sleep(_SAFE_RETRY_PAUSE_S)
+        log.error("%s: the safe position %g rad was NOT acknowledged within safe_timeout_s=%g s "
+                  "(%s); check the servo by hand", self.name, self.safe_rad,
+                  self.safe_timeout_s, last)
+        return False
 
     def _write(self) -> None:
         # Enable on every new connection: the device behind it may have rebooted (and lost

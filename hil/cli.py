@@ -7,8 +7,12 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import ipaddress
+import logging
+import math
+import sys
 
-from hil.emulator import LOADCELL_UNIT, SERVO_UNIT, Emulator, serve
+from hil.emulator import IDLE_TIMEOUT_S, LOADCELL_UNIT, SERVO_UNIT, Emulator, serve
 from hil.errors import HILError
 from hil.plant import FlatPlatePlant
 from hil.registers import available_maps, load_loadcell_map, load_servo_map
@@ -32,8 +36,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "emulate", help="serve a Modbus emulator of the test bench (load cell + servo)",
         description=_DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--host", default="127.0.0.1",
-                   help="interface to bind (default: %(default)s; 0.0.0.0 exposes it to the "
-                        "network)")
+                   help="interface to bind (default: %(default)s). Modbus has no "
+                        "authentication: anything but loopback needs --allow-remote")
+    p.add_argument("--allow-remote", action="store_true",
+                   help="allow binding a non-loopback interface (anyone who reaches it can move "
+                        "the emulated servo); a warning is printed")
+    p.add_argument("--idle-timeout-s", type=float, default=IDLE_TIMEOUT_S, metavar="S",
+                   help="close a connection silent for this long, e.g. a client that vanished "
+                        "without closing it (default: %(default)s)")
     p.add_argument("--port", type=int, default=5020,
                    help="TCP port; 0 picks a free one (default: %(default)s). The bound port is "
                         "printed on the first line of output")
@@ -61,14 +71,24 @@ def emulate(args: argparse.Namespace) -> int:
         raise HILError(f"--port {args.port}: valid values are 0..65535")
     if not args.noise_N >= 0:
         raise HILError(f"--noise-N {args.noise_N}: must be >= 0")
+    if not (math.isfinite(args.idle_timeout_s) and args.idle_timeout_s > 0):
+        raise HILError(f"--idle-timeout-s {args.idle_timeout_s}: must be a positive number")
+    if not is_loopback(args.host):
+        if not args.allow_remote:
+            raise HILError(f"--host {args.host}: not a loopback address; Modbus has no "
+                           "authentication, so binding it needs --allow-remote")
+        print(f"featherstar emulate: WARNING: serving on {args.host}: anyone who can reach it "
+              "can read the load cell and move the emulated servo", file=sys.stderr)
+    # Maps first: a typo must not wait for the FMUs to build.
+    loadcell_map, servo_map = load_loadcell_map(args.loadcell_map), load_servo_map(args.servo_map)
+    logging.basicConfig(level=logging.WARNING, format="%(asctime)s %(name)s: %(message)s")
     if args.plant == "fmu":
         from hil.fmu_plant import FmuPlant  # builds FMUs: only when asked for
 
         plant = FmuPlant(args.morphology)
     else:
         plant = FlatPlatePlant()
-    emulator = Emulator(load_loadcell_map(args.loadcell_map), load_servo_map(args.servo_map), plant,
-                        noise_N=args.noise_N, seed=args.seed)
+    emulator = Emulator(loadcell_map, servo_map, plant, noise_N=args.noise_N, seed=args.seed)
 
     def ready(port: int) -> None:
         print(f"featherstar emulate: listening on modbus-tcp://{args.host}:{port} "
@@ -76,10 +96,21 @@ def emulate(args: argparse.Namespace) -> int:
               f"servo unit {SERVO_UNIT}: {emulator.servo_map.name})", flush=True)
 
     try:
-        asyncio.run(serve(emulator, args.host, args.port, asyncio.Event(), ready))
+        asyncio.run(serve(emulator, args.host, args.port, asyncio.Event(), ready,
+                          idle_timeout_s=args.idle_timeout_s))
     except KeyboardInterrupt:
         pass
     return 0
+
+
+def is_loopback(host: str) -> bool:
+    """Whether binding `host` keeps the emulator on this machine (a name may resolve anywhere)."""
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False   # a host name: it may resolve to anything
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import abc
 import asyncio
+import logging
+import math
 import random
 import re
 import subprocess
@@ -25,12 +27,10 @@ import time
 from pathlib import Path
 from typing import Callable
 
-from pymodbus.constants import ExcCodes
-from pymodbus.server import ModbusTcpServer
-from pymodbus.simulator import DataType, SimData, SimDevice
-
 from hil.codec import decode_value, encode_status, encode_value
 from hil.errors import HILError
+from hil.modbus_server import (DEVICE_FAILURE, ILLEGAL_ADDRESS, ILLEGAL_VALUE, ModbusTcpServer,
+                              RateLimitedLog, spaces_for)
 from hil.plant import FlatPlatePlant, Plant
 from hil.registers import (Function, LoadCellMap, NumberField, ServoMap, Status, StatusField,
                            load_loadcell_map, load_servo_map)
@@ -40,36 +40,20 @@ SERVO_UNIT = 2
 LOADCELL_CAPACITY_N = 3.0 * 9.80665     # the bench's 0-3 kg cell
 REGISTER_DECIMALS = 3                   # what the emulator puts in a decimals register
 FAULTS = ("freeze", "silent", "exception", "overload", "error")
+SERVO_RANGE_RAD = (-math.pi / 2, math.pi / 2)   # setpoint clamp when the map gives no range
+IDLE_TIMEOUT_S = 30.0                   # close connections silent for this long
 _STABLE_RATE_RAD_S = 0.05              # below this the feather (and the cell) is at rest
 _SILENT_MAX_S = 30.0                    # a silent device answers eventually, so stop() ends
 _READ_FC = {Function.HOLDING: 3, Function.INPUT: 4}
+log = logging.getLogger(__name__)
 
 
-def _sim_device(unit: int, read_function: Function, readable: list[tuple[int, int]],
-                writable: list[tuple[int, int]], action) -> SimDevice:
-    """Separate holding and input spaces, as real transmitters have; measured values are
-    read-only, so a client writing to them gets the exception a device would send."""
-    spaces: dict[Function, list[SimData]] = {Function.HOLDING: [], Function.INPUT: []}
-    for address, count in readable:
-        spaces[read_function].append(SimData(address, values=[0] * count,
-                                             datatype=DataType.REGISTERS, readonly=True))
-    for address, count in writable:
-        spaces[Function.HOLDING].append(SimData(address, values=[0] * count,
-                                                datatype=DataType.REGISTERS))
-    for blocks in spaces.values():
-        if not blocks:   # pymodbus needs at least one entry per space
-            blocks.append(SimData(0, datatype=DataType.INVALID))
-    bits = [SimData(0, count=16, values=False, datatype=DataType.BITS)]
-    return SimDevice(id=unit, simdata=(bits, list(bits), spaces[Function.HOLDING],
-                                       spaces[Function.INPUT]), action=action)
-
-
-def _put(registers: list[int], start: int, address: int, values: list[int]) -> None:
-    registers[address - start:address - start + len(values)] = values
+def _put(registers: dict[int, int], address: int, values: list[int]) -> None:
+    registers.update(zip(range(address, address + len(values)), values))
 
 
 class Emulator:
-    """The register-level behaviour of the bench; serve it with `devices()`."""
+    """The register-level behaviour of the bench; serve it with `serve()`."""
 
     def __init__(self, loadcell_map: LoadCellMap, servo_map: ServoMap, plant: Plant | None = None,
                  *, noise_N: float = 0.01, seed: int | None = None, preload_N: float = -0.3,
@@ -85,9 +69,17 @@ class Emulator:
         self.servo_enabled = servo_map.enable is None
         self.servo_setpoint_rad: float | None = None
         self.requests = 0
+        self.plant_resets = 0
+        self.log = RateLimitedLog()
         self._faults: dict[str, str] = {}
         self._t_mono: float | None = None
         self._rate_rad_s = 0.0        # measured across requests: the Plant protocol has no rate
+        self._registers = {LOADCELL_UNIT: {"holding": {}, "input": {}},
+                           SERVO_UNIT: {"holding": {}, "input": {}}}
+        sp = servo_map.setpoint
+        lo, hi = SERVO_RANGE_RAD
+        self.setpoint_range_rad = (lo if sp.min is None else sp.min * sp.to_si,
+                                   hi if sp.max is None else sp.max * sp.to_si)
 
     def inject(self, device: str, fault: str | None) -> None:
         """Make 'loadcell' or 'servo' misbehave: one of FAULTS, or None to heal it."""
@@ -100,37 +92,59 @@ class Emulator:
             else:
                 self._faults[device] = fault
 
-    def devices(self) -> list[SimDevice]:
+    def units(self) -> dict[int, tuple]:
+        """Unit id -> (register spaces, handler), for hil.modbus_server."""
         lc, sv = self.loadcell_map, self.servo_map
         lc_read = lc.value.spans() + ([(lc.status.address, 1)] if lc.status else [])
         lc_write = [(lc.tare.address, 1)] if lc.tare else []
         sv_read = (sv.position.spans() if sv.position else []) \
             + ([(sv.status.address, 1)] if sv.status else [])
         sv_write = [(sv.setpoint.address, 2)] + ([(sv.enable.address, 1)] if sv.enable else [])
-        return [_sim_device(LOADCELL_UNIT, lc.read_function, lc_read, lc_write,
-                            self._loadcell_action),
-                _sim_device(SERVO_UNIT, sv.read_function, sv_read, sv_write, self._servo_action)]
+        return {LOADCELL_UNIT: (spaces_for(lc.read_function.value, lc_read, lc_write),
+                                self._loadcell_action),
+                SERVO_UNIT: (spaces_for(sv.read_function.value, sv_read, sv_write),
+                             self._servo_action)}
 
     def force_N(self) -> float:
         """What the cell feels, before tare and noise."""
         return self.plant.thrust_N + self.preload_N
 
-    def _advance(self) -> None:
+    def _advance(self) -> bool:
+        """Advance the plant to now; False (after resetting it) if its step failed."""
         now = time.monotonic()
+        self.requests += 1
         if self._t_mono is not None and now > self._t_mono:
             angle_rad, dt_s = self.plant.angle_rad, min(now - self._t_mono, self.max_advance_s)
-            self.plant.advance(dt_s)
+            try:
+                self.plant.advance(dt_s)
+                if not (math.isfinite(self.plant.angle_rad) and math.isfinite(self.plant.thrust_N)):
+                    raise HILError(f"plant state not finite (angle {self.plant.angle_rad})")
+            except Exception as exc:   # one bad step must not poison the device for good
+                self._reset_plant(exc)
+                self._t_mono = now
+                return False
             self._rate_rad_s = (self.plant.angle_rad - angle_rad) / dt_s
         self._t_mono = now
-        self.requests += 1
+        return True
 
-    async def _misbehave(self, device: str) -> ExcCodes | None:
+    def _reset_plant(self, exc: Exception) -> None:
+        self.plant_resets += 1
+        self.log(logging.ERROR, f"plant step failed ({type(exc).__name__}: {exc}); plant reset "
+                                f"to rest, servo disabled until a new setpoint "
+                                f"(reset #{self.plant_resets})")
+        reset = getattr(self.plant, "reset", None)
+        if reset is not None:
+            reset()
+        self.servo_setpoint_rad = None
+        self._rate_rad_s = 0.0
+
+    async def _misbehave(self, device: str) -> int | None:
         if self._faults.get(device) == "silent":
             t_end = time.monotonic() + _SILENT_MAX_S
             while self._faults.get(device) == "silent" and time.monotonic() < t_end:
                 await asyncio.sleep(0.005)
         if self._faults.get(device) == "exception":
-            return ExcCodes.DEVICE_FAILURE
+            return DEVICE_FAILURE
         return None
 
     def _status(self, field: StatusField, device: str, overload: bool) -> list[int]:
@@ -140,66 +154,83 @@ class Emulator:
         return [encode_status(field, status)]
 
     @staticmethod
-    def _put_number(registers: list[int], start: int, field: NumberField, x: float) -> None:
+    def _put_number(registers: dict[int, int], field: NumberField, x: float) -> None:
         decimals = None
         if field.decimals_address is not None:
             decimals = REGISTER_DECIMALS
-            _put(registers, start, field.decimals_address, [decimals])
-        _put(registers, start, field.address, encode_value(field, x, decimals))
+            _put(registers, field.decimals_address, [decimals])
+        _put(registers, field.address, encode_value(field, x, decimals))
 
-    async def _loadcell_action(self, function_code: int, start: int, address: int, count: int,
-                               registers: list[int], set_values: list[int] | None
-                               ) -> ExcCodes | None:
+    @staticmethod
+    def _read(registers: dict[int, int], address: int, count: int) -> list[int]:
+        return [registers.get(a, 0) for a in range(address, address + count)]
+
+    async def _loadcell_action(self, function_code: int, space: str, address: int, count: int,
+                               values: list[int] | None) -> list[int] | int | None:
         if (exc := await self._misbehave("loadcell")) is not None:
             return exc
         m = self.loadcell_map
+        registers = self._registers[LOADCELL_UNIT][space]
         with self.lock:
-            self._advance()
-            if set_values is not None:
+            if not self._advance():
+                return DEVICE_FAILURE
+            if values is not None:
                 if m.tare and address <= m.tare.address < address + count \
-                        and set_values[m.tare.address - address] == m.tare.value:
+                        and values[m.tare.address - address] == m.tare.value:
                     self.tare_N = self.force_N()
+                _put(registers, address, values)
                 return None
-            if function_code != _READ_FC[m.read_function] or \
-                    self._faults.get("loadcell") == "freeze":
-                return None
-            force_N = self.force_N()
-            reading_N = force_N - self.tare_N + self.rng.gauss(0.0, self.noise_N)
-            self._put_number(registers, start, m.value, reading_N / m.value.to_si)
-            if m.status is not None:
-                _put(registers, start, m.status.address,
-                     self._status(m.status, "loadcell", abs(force_N) > self.capacity_N))
-        return None
+            if function_code == _READ_FC[m.read_function] and \
+                    self._faults.get("loadcell") != "freeze":
+                force_N = self.force_N()
+                reading_N = force_N - self.tare_N + self.rng.gauss(0.0, self.noise_N)
+                self._put_number(registers, m.value, reading_N / m.value.to_si)
+                if m.status is not None:
+                    _put(registers, m.status.address,
+                         self._status(m.status, "loadcell", abs(force_N) > self.capacity_N))
+            return self._read(registers, address, count)
 
-    async def _servo_action(self, function_code: int, start: int, address: int, count: int,
-                            registers: list[int], set_values: list[int] | None
-                            ) -> ExcCodes | None:
+    async def _servo_action(self, function_code: int, space: str, address: int, count: int,
+                            values: list[int] | None) -> list[int] | int | None:
         if (exc := await self._misbehave("servo")) is not None:
             return exc
         m = self.servo_map
+        registers = self._registers[SERVO_UNIT][space]
         with self.lock:
-            self._advance()
-            if set_values is not None:
-                return self._servo_write(address, set_values)
-            if function_code != _READ_FC[m.read_function] or \
-                    self._faults.get("servo") == "freeze":
-                return None
-            if m.position is not None:
-                self._put_number(registers, start, m.position,
-                                 self.plant.angle_rad / m.position.to_si)
-            if m.status is not None:
-                _put(registers, start, m.status.address, self._status(m.status, "servo", False))
-        return None
+            if not self._advance():
+                return DEVICE_FAILURE
+            if values is not None:
+                return self._servo_write(registers, address, values)
+            if function_code == _READ_FC[m.read_function] and \
+                    self._faults.get("servo") != "freeze":
+                if m.position is not None:
+                    self._put_number(registers, m.position,
+                                     self.plant.angle_rad / m.position.to_si)
+                if m.status is not None:
+                    _put(registers, m.status.address, self._status(m.status, "servo", False))
+            return self._read(registers, address, count)
 
-    def _servo_write(self, address: int, values: list[int]) -> ExcCodes | None:
+    def _servo_write(self, registers: dict[int, int], address: int,
+                     values: list[int]) -> int | None:
         m = self.servo_map
         end = address + len(values)
         sp = m.setpoint
+        setpoint_rad = None
         if address < sp.address + 2 and sp.address < end:
             if not (address <= sp.address and sp.address + 2 <= end):
-                return ExcCodes.ILLEGAL_ADDRESS      # half a 32-bit setpoint
+                return ILLEGAL_ADDRESS      # half a 32-bit setpoint
             offset = sp.address - address
-            self.servo_setpoint_rad = decode_value(sp, values[offset:offset + 2]) * sp.to_si
+            value = decode_value(sp, values[offset:offset + 2])
+            if not math.isfinite(value):
+                return ILLEGAL_VALUE        # NaN / inf: refused, nothing is changed
+            lo, hi = self.setpoint_range_rad
+            # A real controller saturates at its travel; it does not follow 9000 degrees.
+            setpoint_rad = min(max(value * sp.to_si, lo), hi)
+            values = list(values)
+            values[offset:offset + 2] = encode_value(sp, setpoint_rad / sp.to_si)
+        _put(registers, address, values)
+        if setpoint_rad is not None:
+            self.servo_setpoint_rad = setpoint_rad
         if m.enable is not None and address <= m.enable.address < end:
             self.servo_enabled = values[m.enable.address - address] == m.enable.value
         if self.servo_enabled and self.servo_setpoint_rad is not None:
@@ -208,15 +239,16 @@ class Emulator:
 
 
 async def serve(emulator: Emulator, host: str, port: int, stop: asyncio.Event,
-                on_ready: Callable[[int], None]) -> None:
+                on_ready: Callable[[int], None], *,
+                idle_timeout_s: float = IDLE_TIMEOUT_S) -> None:
     """Serve until `stop` is set; `on_ready(bound_port)` once listening."""
-    server = ModbusTcpServer(emulator.devices(), address=(host, port))
-    await server.serve_forever(background=True)
+    server = ModbusTcpServer(emulator.units(), host, port, idle_timeout_s=idle_timeout_s)
+    bound = await server.start()
     try:
-        on_ready(server.transport.sockets[0].getsockname()[1])
+        on_ready(bound)
         await stop.wait()
     finally:
-        await server.shutdown()
+        await server.close()
 
 
 class _Handle(abc.ABC):
@@ -244,8 +276,10 @@ class _Handle(abc.ABC):
 class EmulatorThread(_Handle):
     """An emulator served from a background thread of this process."""
 
-    def __init__(self, emulator: Emulator, host: str, port: int) -> None:
+    def __init__(self, emulator: Emulator, host: str, port: int, *,
+                 idle_timeout_s: float = IDLE_TIMEOUT_S) -> None:
         self.emulator, self.host, self.port = emulator, host, port
+        self.idle_timeout_s = idle_timeout_s
         self._ready = threading.Event()
         self._error: BaseException | None = None
         self._loop = asyncio.new_event_loop()
@@ -261,7 +295,7 @@ class EmulatorThread(_Handle):
             self._ready.set()
         try:
             self._loop.run_until_complete(serve(self.emulator, self.host, self.port, self._stop,
-                                                ready))
+                                                ready, idle_timeout_s=self.idle_timeout_s))
         except BaseException as exc:   # reported to the starting thread
             self._error = exc
             self._ready.set()
@@ -280,11 +314,12 @@ class EmulatorThread(_Handle):
 def start_emulator(host: str = "127.0.0.1", port: int = 0,
                    loadcell_map: str | Path = "loadcell-float32-abcd",
                    servo_map: str | Path = "servo-default", *, noise_N: float = 0.01,
-                   seed: int | None = None, plant: Plant | None = None) -> EmulatorThread:
+                   seed: int | None = None, plant: Plant | None = None,
+                   idle_timeout_s: float = IDLE_TIMEOUT_S) -> EmulatorThread:
     """Serve a new emulator in a background thread; returns once it listens (port 0 = any)."""
     emulator = Emulator(load_loadcell_map(loadcell_map), load_servo_map(servo_map), plant,
                         noise_N=noise_N, seed=seed)
-    return EmulatorThread(emulator, host, port)
+    return EmulatorThread(emulator, host, port, idle_timeout_s=idle_timeout_s)
 
 
 class EmulatorProcess(_Handle):
@@ -293,8 +328,7 @@ class EmulatorProcess(_Handle):
     _LISTENING = re.compile(r"listening on modbus-tcp://(\S+):(\d+)")
 
     def __init__(self, args: list[str], start_timeout_s: float = 20.0) -> None:
-        # stderr to a file: pymodbus logs every dropped connection, and an unread pipe would
-        # fill and stall the child.
+        # stderr to a file: an unread pipe would fill and stall the child.
         self._stderr = tempfile.TemporaryFile("w+")
         self.proc = subprocess.Popen([sys.executable, "-m", "hil", "emulate", *args],
                                      stdout=subprocess.PIPE, stderr=self._stderr, text=True)

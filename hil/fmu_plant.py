@@ -48,8 +48,13 @@ class FmuPlant:
         if not (math.isfinite(step_s) and 0 < step_s <= 0.01):
             raise HILError(f"FmuPlant step_s = {step_s!r} s must be in (0, 0.01]")
         self.step_s = step_s
-        self._servo = _Slave(build_model("servo"), servo_parameters or {}, "emulated_servo")
-        self._feather = _Slave(build_model("feather", {"morphology": morphology}), feather_parameters or {},
+        self._build = (morphology, dict(feather_parameters or {}), dict(servo_parameters or {}))
+        self._instantiate()
+
+    def _instantiate(self) -> None:
+        morphology, feather_parameters, servo_parameters = self._build
+        self._servo = _Slave(build_model("servo"), servo_parameters, "emulated_servo")
+        self._feather = _Slave(build_model("feather", {"morphology": morphology}), feather_parameters,
                                "emulated_feather")
         self._servo_in = self._servo.refs("setpoint_rad", "load_torque_Nm")
         self._servo_out = self._servo.refs("angle_rad", "rate_rad_s", "accel_rad_s2")
@@ -59,6 +64,16 @@ class FmuPlant:
         self._debt_s = 0.0
         self._setpoint_rad = 0.0
         self._angle_rad, self._thrust_N, self._torque_Nm = 0.0, 0.0, 0.0
+
+    def reset(self) -> None:
+        """Fresh FMU instances at rest: an FMU whose step failed is in an undefined state."""
+        for slave in (self._servo, self._feather):
+            try:
+                slave.fmu.terminate()
+                slave.fmu.freeInstance()
+            except Exception:   # it already failed; a fresh instance replaces it either way
+                pass
+        self._instantiate()
 
     @property
     def angle_rad(self) -> float:

@@ -151,6 +151,10 @@ class Link:
                 stopbits=url.stopbits, bytesize=url.bytesize, timeout=timeout_s, retries=0)
         self.where = f"{url.host}:{url.port}" if url.scheme == "modbus-tcp" else url.serial_port
 
+    @property
+    def timeout_s(self) -> float:
+        return float(self.client.comm_params.timeout_connect)
+
     def set_timeout(self, timeout_s: float) -> None:
         # pymodbus reads comm_params.timeout_connect on every receive, so this takes effect
         # on the next request.

@@ -79,6 +79,10 @@ class FlatPlatePlant:
     def set_setpoint_rad(self, x: float) -> None:
         self.setpoint_rad = min(max(x, -self.limit_rad), self.limit_rad)
 
+    def reset(self) -> None:
+        """Back to rest at angle 0 (the emulator's recovery from a failed step)."""
+        self.angle_rad = self.rate_rad_s = self.accel_rad_s2 = self.setpoint_rad = 0.0
+
     def advance(self, dt_s: float) -> None:
         """Semi-implicit Euler in substeps of at most max_dt_s (tau_motor_s / 25 by default)."""
         if dt_s <= 0:

@@ -29,7 +29,16 @@ from .synthetic import SyntheticFeather
 _SYNTHETIC_PREFIX = "synthetic:"
 
 
+# The optimizer sets each evaluation's run length and metric window from its measurement plan.
+_PLAN_KEYS = ("master.periods", "master.t_end_s", "metrics.settle_periods", "metrics.period_s")
+
+
 def make_objective(scene: str, overrides: dict[str, str | float]) -> Objective:
+    fixed = [key for key in overrides if key in _PLAN_KEYS]
+    if fixed:
+        raise OptimizerError(f"--set {fixed[0]}: refused, the optimizer sets the run length and "
+                             "the settling itself for every evaluation (its measurement plan: "
+                             "settling + measured periods), so this override would be ignored")
     if scene.startswith(_SYNTHETIC_PREFIX):
         return WithOverrides(SyntheticFeather(morphology=scene[len(_SYNTHETIC_PREFIX):]), overrides)
     return SceneObjective(scene, overrides)

@@ -139,14 +139,16 @@ def test_close_commands_the_safe_position_when_the_link_is_up(emulator):
     servo.close()        # idempotent
 
 
-def test_close_never_raises_when_the_link_is_down(make_emulator):
+def test_close_never_raises_when_the_link_is_down_and_gives_up_at_its_deadline(make_emulator):
     emu = make_emulator()
-    servo = Servo("servo", emu.servo_url, timeout_s=T)
+    servo = Servo("servo", emu.servo_url, timeout_s=T, safe_timeout_s=0.5)
     servo.start(0.0)
     emu.stop()
     t = time.monotonic()
     servo.close()
-    assert time.monotonic() - t < 1.0
+    # It keeps trying (the device may come back) until safe_timeout_s, then reports failure.
+    assert 0.4 < time.monotonic() - t < 3.0
+    assert servo.safe_confirmed is False
 
 
 def test_lost_emulator_raises_a_fault_naming_device_fault_and_time(make_emulator):
@@ -306,3 +308,46 @@ def test_a_cell_never_stable_for_unstable_s_is_stale(make_emulator, constant_pla
             time.sleep(0.01)
     assert not cell.status.stable
     cell.close()
+
+
+@pytest.mark.hil
+def test_start_is_patient_but_the_run_keeps_its_step_deadline(make_emulator):
+    """A transmitter slow to answer its first requests (here 0.3 s) does not fail the start
+    with a 50 ms step timeout; once started, a silent device is a fault within that timeout."""
+    emu = make_emulator(seed=5)
+    cell = LoadCell("cell", emu.loadcell_url, timeout_s=0.05, start_timeout_s=1.0)
+    emu.emulator.inject("loadcell", "silent")
+    healer = threading.Timer(0.3, emu.emulator.inject, ("loadcell", None))
+    healer.start()
+    try:
+        t0 = time.monotonic()
+        cell.start(0.0)
+        assert 0.25 < time.monotonic() - t0 < 5.0
+        assert cell.link.timeout_s == pytest.approx(0.05)   # restored for the run
+        assert cell.events == []                             # start-up slowness is not a gap
+        emu.emulator.inject("loadcell", "silent")
+        t0 = time.monotonic()
+        with pytest.raises(DeviceFault) as info:
+            cell.do_step(0.0, 0.004)
+        assert info.value.fault is Fault.TIMEOUT and time.monotonic() - t0 < 1.0
+    finally:
+        healer.cancel()
+        emu.emulator.inject("loadcell", None)
+        cell.close()
+
+
+@pytest.mark.hil
+def test_a_recovered_fault_and_a_new_connection_are_events(make_emulator):
+    emu = make_emulator(seed=6)
+    cell = LoadCell("cell", emu.loadcell_url, timeout_s=0.05, reconnect_s=5.0)
+    cell.start(0.0)
+    try:
+        emu.emulator.inject("loadcell", "silent")
+        threading.Timer(0.2, emu.emulator.inject, ("loadcell", None)).start()
+        cell.do_step(0.0, 0.004)
+        kinds = [e["kind"] for e in cell.events]
+        assert "gap" in kinds and "reconnect" in kinds   # a timeout re-dials the link
+        reconnect = next(e for e in cell.events if e["kind"] == "reconnect")
+        assert reconnect["tare_unknown"] is True and reconnect["t_s"] == pytest.approx(0.004)
+    finally:
+        cell.close()

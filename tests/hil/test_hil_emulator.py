@@ -107,3 +107,55 @@ def test_cli_reports_a_bad_map_and_exits_2(capsys):
         main(["emulate", "--port", "0", "--servo-map", "no-such-map"])
     assert info.value.code == 2
     assert "no-such-map" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("host", ["0.0.0.0", "192.168.1.20", "bench.example.org"])
+def test_binding_beyond_loopback_needs_an_explicit_flag(capsys, host):
+    with pytest.raises(SystemExit) as info:
+        main(["emulate", "--port", "0", "--plant", "flat-plate", "--host", host])
+    assert info.value.code == 2
+    err = capsys.readouterr().err
+    assert f"--host {host}" in err and "--allow-remote" in err
+
+
+@pytest.mark.hil
+def test_allow_remote_binds_with_a_warning(tmp_path):
+    import subprocess
+    import sys
+
+    err_path = tmp_path / "stderr"
+    with err_path.open("w") as err:
+        proc = subprocess.Popen([sys.executable, "-m", "hil", "emulate", "--host", "0.0.0.0",
+                                 "--allow-remote", "--port", "0", "--plant", "flat-plate"],
+                                stdout=subprocess.PIPE, stderr=err, text=True)
+        try:
+            assert "listening on modbus-tcp://0.0.0.0:" in proc.stdout.readline()
+        finally:
+            proc.terminate()
+            proc.wait(10)
+            proc.stdout.close()
+    assert "WARNING: serving on 0.0.0.0" in err_path.read_text()
+
+
+@pytest.mark.hil
+def test_fmu_plant_reset_starts_fresh_instances_at_rest():
+    from hil.fmu_plant import FmuPlant
+
+    plant = FmuPlant("plain")
+    plant.set_setpoint_rad(0.5)
+    plant.advance(0.2)
+    moved = plant.angle_rad
+    plant.reset()
+    assert moved > 0.3 and plant.angle_rad == 0.0 and plant.thrust_N == 0.0
+    plant.set_setpoint_rad(0.5)
+    plant.advance(0.2)
+    assert plant.angle_rad == pytest.approx(moved, rel=1e-9)   # the same physics again
+
+
+@pytest.mark.parametrize("host, loopback", [("127.0.0.1", True), ("127.0.0.2", True),
+                                            ("::1", True), ("localhost", True),
+                                            ("0.0.0.0", False), ("::", False)])
+def test_only_loopback_counts_as_local(host, loopback):
+    from hil.cli import is_loopback
+
+    assert is_loopback(host) is loopback

@@ -94,7 +94,7 @@ def test_run_paced_records_a_slow_step_as_deadline_misses(tmp_path):
 def test_killing_the_emulator_mid_run_leaves_data_and_a_fault_note(tmp_path):
     emu = spawn_emulator(seed=4)
     cell = LoadCell("thrust-cell", emu.loadcell_url, timeout_s=T)
-    servo = Servo("servo", emu.servo_url, timeout_s=T)
+    servo = Servo("servo", emu.servo_url, timeout_s=T, safe_timeout_s=0.5)  # the device is dead
     try:
         cell.start(0.0)
         servo.start(0.0)

@@ -25,7 +25,8 @@ EMULATOR = dict(plant="fmu", morphology="plain", noise_N=0.0, seed=1, start_time
 
 
 def _hardware_scene(emulator, slots=("servo", "loadcell")):
-    urls = {"servo": emulator.servo_url, "loadcell": emulator.loadcell_url}
+    # A dead device never acknowledges the safe position: do not wait the default 5 s for it.
+    urls = {"servo": emulator.servo_url + "&safe_timeout_s=0.5", "loadcell": emulator.loadcell_url}
     return with_hardware(load_scene("testbed"), {slot: urls[slot] for slot in slots})
 
 
@@ -75,15 +76,19 @@ def test_cli_writes_partial_results_and_the_fault_when_the_device_dies(tmp_path)
     try:
         done = subprocess.run(
             [sys.executable, "-m", "cosim.cli", "run", "testbed", "--quiet", "--no-figure", "--out", str(tmp_path),
-             "--hardware", f"servo={emulator.servo_url}", "--hardware", f"loadcell={emulator.loadcell_url}",
+             "--hardware", f"servo={emulator.servo_url}&safe_timeout_s=0.5", "--hardware", f"loadcell={emulator.loadcell_url}",
              "--set", "feather.morphology=plain", "--set", "master.periods=8"],
             capture_output=True, text=True, timeout=120)
     finally:
         killer.cancel()
         emulator.stop()
-    assert done.returncode != 0
+    assert done.returncode == 2
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["failed_block"] in ("servo", "loadcell_hw") and "error" in summary
+    # The device is gone for good: the safe position cannot be confirmed, and the one line says so.
+    assert summary["safe_position_confirmed"] == {"servo": False}
+    line = [ln for ln in done.stderr.splitlines() if ln.startswith("featherstar:")]
+    assert len(line) == 1 and "servo did not acknowledge its safe position" in line[0]
     rows = (tmp_path / "results.csv").read_text().splitlines()
     assert len(rows) > 100 and "loadcell_hw.thrust_N" in rows[0]
 

@@ -1,0 +1,143 @@
+"""Fault injection: `featherstar run testbed` with both devices swapped for an emulator process,
+then the emulator killed and restarted, frozen for 1 s, or the run itself sent SIGTERM / SIGINT.
+
+Each case asserts the exit status, the one-line message, the partial data on disk, the
+summary's validity flags and the servo's final setpoint read back from the device (the safe
+position, 0 rad). The analytic flat-plate plant keeps the emulator quick to start; the run is
+4 stroke periods (6 s) of the testbed scene.
+"""
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from pymodbus.client import ModbusTcpClient
+
+from hil.codec import decode_value
+from hil.emulator import SERVO_UNIT, spawn_emulator
+from hil.registers import load_servo_map
+
+pytestmark = pytest.mark.hil
+
+# Generous per-request timeout: the suite shares 2 cores with FMU builds.
+URL_OPTIONS = "&timeout_s=0.5"
+RUN_S = 6.0
+
+
+def _start_run(emulator, out: Path, url_options: str = URL_OPTIONS) -> subprocess.Popen:
+    return subprocess.Popen(
+        [sys.executable, "-m", "cosim.cli", "run", "testbed", "--quiet", "--no-figure",
+         "--out", str(out),
+         "--hardware", f"servo={emulator.servo_url}{url_options}",
+         "--hardware", f"loadcell={emulator.loadcell_url}{url_options}",
+         "--set", "master.periods=4", "--set", "metrics.settle_periods=1"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def _setpoint_deg(port: int) -> float | None:
+    """The servo's setpoint register read back from the emulator (None if it does not answer)."""
+    sp = load_servo_map("servo-default").setpoint
+    with ModbusTcpClient("127.0.0.1", port=port, timeout=1.0, retries=0) as client:
+        reply = client.read_holding_registers(sp.address, count=2, device_id=SERVO_UNIT)
+        if reply.isError():
+            return None
+        return decode_value(sp, reply.registers)
+
+
+def _wait_until_moving(emulator, run: subprocess.Popen, timeout_s: float = 60.0) -> None:
+    """Block until the run commands the servo away from 0 (start-up is over)."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        assert run.poll() is None, f"the run ended early: {run.communicate()}"
+        value = _setpoint_deg(emulator.port)
+        if value is not None and abs(value) > 1.0:
+            time.sleep(0.5)    # well inside the run, not on its first step
+            return
+        time.sleep(0.05)
+    pytest.fail("the run never moved the servo")
+
+
+def _finish(run: subprocess.Popen) -> tuple[int, str]:
+    _, err = run.communicate(timeout=90)
+    lines = [ln for ln in err.splitlines() if ln.startswith("featherstar:")]
+    assert len(lines) == 1, err   # exactly one line says why the run stopped
+    return run.returncode, lines[0]
+
+
+def _assert_partial_data_and_safe_servo(out: Path, port: int) -> dict:
+    summary = json.loads((out / "summary.json").read_text())
+    rows = (out / "results.csv").read_text().splitlines()
+    assert "loadcell_hw.thrust_N" in rows[0] and len(rows) > 50
+    assert summary["complete"] is False
+    assert summary["safe_position_confirmed"] == {"servo": True}
+    assert _setpoint_deg(port) == pytest.approx(0.0, abs=0.01)
+    return summary
+
+
+@pytest.mark.parametrize("signame, status", [("SIGTERM", 143), ("SIGINT", 130)])
+def test_a_signal_to_the_run_stops_it_safely_and_keeps_the_data(tmp_path, signame, status):
+    with spawn_emulator(plant="flat-plate", seed=1) as emulator:
+        run = _start_run(emulator, tmp_path)
+        try:
+            _wait_until_moving(emulator, run)
+            run.send_signal(getattr(signal, signame))
+            code, line = _finish(run)
+        finally:
+            run.kill()
+        assert code == status
+        assert f"interrupted by {signame}" in line and "partial results" in line
+        summary = _assert_partial_data_and_safe_servo(tmp_path, emulator.port)
+        assert summary["failed_block"] == "master"
+        assert 0.0 < summary["failed_at_s"] < RUN_S
+
+
+def test_a_frozen_device_stops_the_run_and_the_servo_is_made_safe_once_it_wakes(tmp_path):
+    with spawn_emulator(plant="flat-plate", seed=1) as emulator:
+        run = _start_run(emulator, tmp_path)
+        try:
+            _wait_until_moving(emulator, run)
+            os.kill(emulator.proc.pid, signal.SIGSTOP)
+            time.sleep(1.0)
+            os.kill(emulator.proc.pid, signal.SIGCONT)
+            code, line = _finish(run)
+        finally:
+            os.kill(emulator.proc.pid, signal.SIGCONT)
+            run.kill()
+        assert code == 2
+        assert "timeout" in line and "partial results" in line
+        summary = _assert_partial_data_and_safe_servo(tmp_path, emulator.port)
+        assert summary["failed_block"] in ("servo", "loadcell_hw")
+        assert "timeout" in summary["error"]
+
+
+def test_a_device_killed_and_restarted_is_recovered_but_its_periods_are_not_trusted(tmp_path):
+    emulator = spawn_emulator(plant="flat-plate", seed=1)
+    port = emulator.port
+    run = _start_run(emulator, tmp_path, URL_OPTIONS + "&reconnect_s=20")
+    restarted = None
+    try:
+        _wait_until_moving(emulator, run)
+        emulator.kill()
+        restarted = spawn_emulator(port=port, plant="flat-plate", seed=2)
+        code, line = _finish(run)
+    finally:
+        run.kill()
+        emulator.stop()
+    try:
+        # The run recovered and finished, but the load cell may have lost its tare: the periods
+        # from the reconnect on are excluded and too few valid ones are left.
+        assert code == 2 and "run incomplete" in line
+        summary = _assert_partial_data_and_safe_servo(tmp_path, port)
+        assert "error" not in summary and summary["reconnects"] >= 1
+        invalid = summary["validity"]["invalid_periods"]
+        assert any("tare unknown" in r for p in invalid for r in p["reasons"])
+        assert summary["validity"]["valid_periods"] < summary["validity"]["needed_valid_periods"]
+        assert summary["thrust_ratio_all_periods"] is not None
+    finally:
+        restarted.stop()
