@@ -96,7 +96,7 @@ def _batch_workers(args: argparse.Namespace) -> int:
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    """Add the optimize, sweep and codesign subcommands; each sets `func`."""
+    """Add the optimize, sweep, codesign and paper subcommands; each sets `func`."""
     opt = subparsers.add_parser("optimize", help="Bayesian optimization of the stroke (paper Sec. II-D)")
     _common(opt, default_noise_N=DEFAULT_NOISE_SD_N)
     opt.add_argument("--objective", choices=("max", "min"), default="max", help="best (max TR) or worst (min TR)")
