@@ -40,7 +40,7 @@ class Executor(ABC):
 
     @abstractmethod
     def submit(self, fn: Callable[..., Any], /, *args: Any) -> Any:
-        """Start fn(*args); returns a future with done(), result() and cancel()."""
+        """Schedule fn(*args); returns a future with done(), result() and cancel()."""
 
     @abstractmethod
     def wait_any(self, pending: Collection[Any]) -> set[Any]:

@@ -22,10 +22,13 @@ def test_cluster_speedup_bench_quick_mode(tmp_path):
     assert done.returncode == 0, done.stderr[-2000:]
     assert "speed-up" in done.stdout
     result = json.loads((tmp_path / "cluster_speedup.json").read_text())
-    one, two = result["one_worker"], result["two_workers"]
-    assert one["workers"] == 1 and two["workers"] == 2
-    assert one["runs"] == two["runs"] == result["sweep"]["runs"] == 14 and one["failed_runs"] == 0
+    assert [m["workers"] for m in result["sweeps"]] == result["order"] == [1, 2, 2, 1]
+    assert all(m["runs"] == 14 and m["failed_runs"] == 0 for m in result["sweeps"])
     assert result["results_equal"] is True
-    assert result["speedup_1_to_2_workers"] == pytest.approx(one["wall_s"] / two["wall_s"])
+    for n in (1, 2):
+        assert result["wall_s"][f"{n}_workers"] == pytest.approx(sum(m["wall_s"] for m in result["sweeps"]
+                                                                     if m["workers"] == n))
+        assert result["warm_up_s"][f"{n}_workers"] > 0
+    assert result["speedup_1_to_2_workers"] == pytest.approx(result["wall_s"]["1_workers"] / result["wall_s"]["2_workers"])
     assert result["speedup_1_to_2_workers"] > 1.3
-    assert one["cpu_parallelism_before"] > 0 and two["cpu_parallelism_before"] > 0
+    assert all(m["cpu_parallelism_before"] > 0 for m in result["sweeps"])

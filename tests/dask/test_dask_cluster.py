@@ -9,6 +9,7 @@ import pytest
 from dask_testing import FEATHER, fmu_run_on_this_worker, without_timing
 
 from optimizer.cli import main
+from optimizer.codesign import codesign
 from optimizer.evaluation import MeasurementPlan
 from optimizer.executor import DaskExecutor, ProcessExecutor
 from optimizer.objective import master_available
@@ -52,6 +53,16 @@ def test_batched_study_on_the_cluster_equals_the_local_run(cluster, tmp_path):
     assert logs["dask"][0]["batch_size"] == 2
     for key in ("best_params", "thrust_ratio", "thrust_ratio_sd", "baseline_thrust_ratio", "estimated_thrust_ratio"):
         assert runs["dask"][key] == runs["local"][key], key
+
+
+def test_codesign_on_the_cluster_equals_the_local_run(cluster, tmp_path):
+    reports = {}
+    for name, executor in (("dask", DaskExecutor(cluster.scheduler_address)), ("local", ProcessExecutor(2))):
+        with executor:
+            reports[name] = codesign(FEATHER, "chordwise", tmp_path / name, budget=8, plan=PLAN, batch_size=2,
+                                     executor=executor)
+    assert len(reports["dask"]["two_stage"]["stage1"]) == 2
+    assert reports["dask"] == reports["local"]
 
 
 @pytest.mark.skipif(not master_available(), reason="cosim.run_scene (the FMU master) is not available")
