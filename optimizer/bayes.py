@@ -13,6 +13,7 @@ budget is spent. Objective values are the paper's thrust ratio, maximized or min
 """
 from __future__ import annotations
 
+import copy
 import math
 import time
 import warnings
@@ -29,7 +30,8 @@ from fmu_src.errors import FeatherstarError
 
 from .acquisition import DEFAULT_EXPLORATION_RATIO, Proposal, expected_improvement_plus, incumbent, noise_sd
 from .errors import OptimizerError
-from .evaluation import ITERATION_STREAM, MeasurementPlan, evaluate
+from .evaluation import ITERATION_STREAM, Evaluation, MeasurementPlan, evaluate
+from .executor import Executor, InlineExecutor
 from .log import ExperimentLog
 from .objective import Objective
 from .space import SearchSpace
@@ -82,6 +84,7 @@ class StrokeOptimizer:
         self.exploration_ratio = exploration_ratio
         self.seed = seed
         self.last_proposal: Proposal | None = None
+        self.last_proposals: list[Proposal | None] = []
         # skopt computes its own next point inside tell(); one sample keeps that unused work cheap.
         self._skopt = Optimizer(
             [Real(v.low, v.high, name=v.name) for v in space.variables],
@@ -98,8 +101,39 @@ class StrokeOptimizer:
         return len(self._skopt.yi)
 
     def ask(self) -> dict[str, float]:
+        return self.ask_batch(1)[0]
+
+    def ask_batch(self, size: int) -> list[dict[str, float]]:
+        """`size` points to evaluate at once; the first is what `ask` would return.
+
+        Constant liar: each further point is asked of a copy of the optimizer told that the points
+        before it scored the best value seen so far (an optimistic lie, so EI there collapses and
+        the batch spreads out). The lies never reach this optimizer. Deterministic for a given
+        seed, history and size, and the first j points of a batch of k are the batch of j.
+        `last_proposals` holds each point's acquisition details (None for random points).
+        """
+        if size < 1:
+            raise OptimizerError(f"batch size {size} must be >= 1")
         with _small_blas():
-            return self._ask()
+            if not self._skopt.models:
+                # The initial design: random points, seeded as the sequential asks would be.
+                self.last_proposals = [None] * size
+                self.last_proposal = None
+                return [self.space.point(self.space.sample(np.random.default_rng([self.seed, self.n_told + j]), 1)[0])
+                        for j in range(size)]
+            points = [self._ask()]
+            proposals = [self.last_proposal]
+            if size > 1:
+                shadow = copy.copy(self)
+                shadow._skopt = self._skopt.copy(random_state=self.seed)
+                lie = min(self._skopt.yi) * (-1.0 if self.maximize else 1.0)  # best seen, in TR
+                for _ in range(size - 1):
+                    shadow.tell(points[-1], lie)
+                    points.append(shadow._ask())
+                    proposals.append(shadow.last_proposal)
+            self.last_proposals = proposals
+            self.last_proposal = proposals[0]
+            return points
 
     def _ask(self) -> dict[str, float]:
         rng = np.random.default_rng([self.seed, self.n_told])
@@ -200,14 +234,22 @@ def optimize(
     exploration_ratio: float = DEFAULT_EXPLORATION_RATIO,
     context: Mapping[str, object] | None = None,
     on_evaluation: Callable[[dict], None] | None = None,
+    batch_size: int = 1,
+    executor: Executor | None = None,
 ) -> OptimizationRun:
     """Run (or continue) `iterations` evaluations of the stroke, logging each one to log_path.
 
     `context` (scene name, fixed overrides...) goes into the log header, so a resume with another
     setup is refused. `on_evaluation` sees every new evaluation record (progress display).
+    Evaluations are asked `batch_size` at a time (`StrokeOptimizer.ask_batch`) and run on
+    `executor` (default: this process); batches start at multiples of `batch_size`, and records
+    are logged in index order as soon as their predecessors are, so a resumed run re-asks the
+    interrupted batch, keeps its logged part and proposes exactly what the uninterrupted run would.
     """
     if iterations < n_initial_points:
         raise OptimizerError(f"iterations = {iterations} must be >= n_initial_points = {n_initial_points}")
+    if batch_size < 1:
+        raise OptimizerError(f"batch size {batch_size} must be >= 1")
     header = {
         "space": space.describe(),
         "maximize": maximize,
@@ -215,6 +257,8 @@ def optimize(
         "n_initial_points": n_initial_points,
         "exploration_ratio": exploration_ratio,
         "context": dict(context or {}),
+        # Only batched logs name their batch size: sequential logs written before batches existed resume.
+        **({"batch_size": batch_size} if batch_size > 1 else {}),
     }
     log = ExperimentLog.open(log_path, header, resume=resume)
     optimizer = StrokeOptimizer(
@@ -225,52 +269,87 @@ def optimize(
     estimates = {r["index"]: r for r in log.records if r["kind"] == "estimate"}
     if [r["index"] for r in evaluations] != list(range(len(evaluations))):
         raise OptimizerError(f"{log_path}: evaluation indices are not 0..{len(evaluations) - 1} in order")
-    optimizer.tell_many([r["params"] for r in evaluations], [r["thrust_ratio"] for r in evaluations])
+    # A batch cut short is asked again from its start; its logged part is kept, not rerun.
+    first = len(evaluations) - len(evaluations) % batch_size if len(evaluations) < iterations else len(evaluations)
+    optimizer.tell_many([r["params"] for r in evaluations[:first]], [r["thrust_ratio"] for r in evaluations[:first]])
     timing = {"simulation_s": 0.0, "optimizer_s": 0.0}
+    executor = executor or InlineExecutor()
 
-    for index in range(len(evaluations), iterations):
+    for start in range(first, iterations, batch_size):
         started = time.perf_counter()
-        point = optimizer.ask()
+        points = optimizer.ask_batch(min(batch_size, iterations - start))
         asked = time.perf_counter()
-        try:
-            result = evaluate(objective, space.overrides(point), space.period_s, plan, ITERATION_STREAM, (index,))
-        except FeatherstarError as exc:  # e.g. the master's energy guard refused this stroke
-            raise OptimizerError(
-                f"evaluation {index} at {point} could not be simulated: {exc}. The {index} evaluations before it "
-                f"are in {log_path}; --resume would ask this point again, so narrow the search space (or fix the "
-                "scene) first"
-            ) from exc
-        evaluated = time.perf_counter()
-        if not math.isfinite(result.thrust_ratio):
-            raise OptimizerError(
-                f"evaluation {index} at {point} gave TR = {result.thrust_ratio}: no negative thrust in "
-                "the window; check the scene's thrust sign and tare"
-            )
-        proposal = optimizer.last_proposal
-        record = {
-            "kind": "evaluation",
-            "index": index,
-            "params": point,
-            "overrides": space.overrides(point),
-            "thrust_ratio": result.thrust_ratio,
-            "mean_thrust_N": result.mean_thrust_N,
-            "sim_wall_s": result.sim_wall_s,
-            "acquisition": None if proposal is None else {
-                "retries": proposal.retries, "overexploiting": proposal.overexploiting,
-                "sigma_f": proposal.sigma_f, "noise_sd": proposal.noise_sd,
-            },
+        logged = evaluations[start:]
+        for record, point in zip(logged, points):
+            if not all(math.isclose(record["params"][k], v, rel_tol=1e-9, abs_tol=1e-12) for k, v in point.items()):
+                raise OptimizerError(f"{log_path}: evaluation {record['index']} is not the point this setup asks "
+                                     "there; the log was written by another version or setup")
+        futures = {
+            executor.submit(_evaluate_point, objective, space.overrides(point), space.period_s, plan, start + j): j
+            for j, point in enumerate(points) if j >= len(logged)
         }
-        log.append(record)
-        evaluations.append(record)
-        if on_evaluation is not None:
-            on_evaluation(record)
-        logged = time.perf_counter()
-        optimizer.tell(point, result.thrust_ratio)
+        results: dict[int, Evaluation | str] = {}
+        for future in executor.as_completed(list(futures)):
+            results[futures[future]] = future.result()
+            # Log in index order: a prefix of the batch is on disk as soon as it is complete.
+            while len(logged) < len(points) and len(logged) in results:
+                j = len(logged)
+                record = _evaluation_record(start + j, points[j], results[j], space, optimizer.last_proposals[j],
+                                            log_path)
+                log.append(record)
+                evaluations.append(record)
+                logged.append(record)
+                if on_evaluation is not None:
+                    on_evaluation(record)
+        evaluated = time.perf_counter()
+        optimizer.tell_many(points, [r["thrust_ratio"] for r in logged])
         estimate = optimizer.best()
         if estimate is not None:
+            index = start + len(points) - 1
             estimates[index] = {"kind": "estimate", "index": index, "params": estimate.point,
                                 "thrust_ratio": estimate.value, "sd": estimate.sd}
             log.append(estimates[index])
         timing["simulation_s"] += evaluated - asked
-        timing["optimizer_s"] += (asked - started) + (time.perf_counter() - logged)
+        timing["optimizer_s"] += (asked - started) + (time.perf_counter() - evaluated)
     return OptimizationRun(evaluations, [estimates.get(i) for i in range(len(evaluations))], optimizer, timing)
+
+
+def _evaluate_point(
+    objective: Objective, overrides: Mapping[str, float | str], period_s: float, plan: MeasurementPlan, index: int
+) -> Evaluation | str:
+    """One evaluation, in whichever process the executor chose. A simulation refusing the point
+    comes back as its message (our errors do not all pickle), so the driver can name the point."""
+    try:
+        return evaluate(objective, overrides, period_s, plan, ITERATION_STREAM, (index,))
+    except FeatherstarError as exc:  # e.g. the master's energy guard refused this stroke
+        return str(exc)
+
+
+def _evaluation_record(
+    index: int, point: dict[str, float], result: Evaluation | str, space: SearchSpace, proposal: Proposal | None,
+    log_path: str | Path,
+) -> dict:
+    if isinstance(result, str):
+        raise OptimizerError(
+            f"evaluation {index} at {point} could not be simulated: {result}. The {index} evaluations before it "
+            f"are in {log_path}; --resume would ask this point again, so narrow the search space (or fix the "
+            "scene) first"
+        )
+    if not math.isfinite(result.thrust_ratio):
+        raise OptimizerError(
+            f"evaluation {index} at {point} gave TR = {result.thrust_ratio}: no negative thrust in "
+            "the window; check the scene's thrust sign and tare"
+        )
+    return {
+        "kind": "evaluation",
+        "index": index,
+        "params": point,
+        "overrides": space.overrides(point),
+        "thrust_ratio": result.thrust_ratio,
+        "mean_thrust_N": result.mean_thrust_N,
+        "sim_wall_s": result.sim_wall_s,
+        "acquisition": None if proposal is None else {
+            "retries": proposal.retries, "overexploiting": proposal.overexploiting,
+            "sigma_f": proposal.sigma_f, "noise_sd": proposal.noise_sd,
+        },
+    }

@@ -1,4 +1,4 @@
-"""`featherstar optimize | sweep | codesign`: thin wrappers over the library.
+"""`featherstar optimize | sweep | codesign | paper`: thin wrappers over the library.
 
 `register(subparsers)` is called by the `featherstar` entry point (cosim.cli); `main()` runs the same
 commands standalone (`python -m optimizer.cli ...`). SCENE is a cosim scene name or path, or
@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 from typing import Sequence
@@ -18,6 +19,7 @@ from .bayes import DEFAULT_ITERATIONS
 from .codesign import MORPHOLOGY_VARIABLES, codesign
 from .errors import OptimizerError
 from .evaluation import MeasurementPlan
+from .executor import Executor, make_executor
 from .figures import sweep_figure
 from .loadcell import DEFAULT_NOISE_SD_N, LoadCell
 from .objective import Objective, SceneObjective, WithOverrides
@@ -75,8 +77,35 @@ def _common(parser: argparse.ArgumentParser, *, default_noise_N: float) -> None:
     parser.add_argument("--amplitude-deg", type=float, default=60.0, help="stroke amplitude, peak to peak")
 
 
+def _where(parser: argparse.ArgumentParser, *, batches: bool) -> None:
+    """Where the experiments run: --scheduler, --workers (and --batch-size for the optimizer)."""
+    parser.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                        help="run on this Dask scheduler (e.g. tcp://host:8786) instead of local processes")
+    if batches:
+        parser.add_argument("--batch-size", type=int, default=1, metavar="K",
+                            help="evaluations asked (constant liar) and run at once (default 1)")
+        parser.add_argument("--workers", type=int, default=None, metavar="N",
+                            help="local processes (default: the batch size, at most all cores)")
+    else:
+        parser.add_argument("--workers", type=int, default=None, metavar="N", help="local processes (default: all cores)")
+
+
+def _executor(args: argparse.Namespace, *, default_workers: int | None = None) -> Executor:
+    """Open the executor the arguments ask for; on a cluster, say where its dashboard is."""
+    executor = make_executor(args.scheduler, default_workers if args.workers is None else args.workers)
+    if args.scheduler:
+        print(executor.describe(), file=sys.stderr, flush=True)
+    return executor
+
+
+def _batch_workers(args: argparse.Namespace) -> int:
+    if args.batch_size < 1:
+        raise OptimizerError(f"--batch-size {args.batch_size} must be >= 1")
+    return min(args.batch_size, os.cpu_count() or 1)
+
+
 def register(subparsers: argparse._SubParsersAction) -> None:
-    """Add the optimize, sweep and codesign subcommands; each sets `func`."""
+    """Add the optimize, sweep, codesign and paper subcommands; each sets `func`."""
     opt = subparsers.add_parser("optimize", help="Bayesian optimization of the stroke (paper Sec. II-D)")
     _common(opt, default_noise_N=DEFAULT_NOISE_SD_N)
     opt.add_argument("--objective", choices=("max", "min"), default="max", help="best (max TR) or worst (min TR)")
@@ -91,6 +120,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     opt.add_argument("--label", default=None, help="morphology label in Fig. 8 (default: the scene)")
     opt.add_argument("--compare", type=Path, nargs="*", default=[], metavar="DIR",
                      help="other optimize output directories to draw in the same Fig. 8")
+    _where(opt, batches=True)
     opt.set_defaults(func=_optimize_command)
 
     sweep = subparsers.add_parser("sweep", help="morphology × controller grid sweep (paper Fig. 3)")
@@ -98,10 +128,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     sweep.add_argument("--family", choices=(*FAMILIES, "both"), default="both")
     sweep.add_argument("--settle-periods", type=int, default=2)
     sweep.add_argument("--periods", type=int, default=3, help="measured periods per run")
-    sweep.add_argument("--workers", type=int, default=None, help="local processes (default: all cores)")
-    sweep.add_argument("--scheduler", default=None, metavar="ADDRESS", help="Dask scheduler, e.g. tcp://host:8786")
+    _where(sweep, batches=False)
     sweep.add_argument("--no-progress", action="store_true")
-    sweep.add_argument("--out", type=Path, default=Path("runs/sweep"))
+    sweep.add_argument("--out", type=Path, default=Path("runs/sweep"), help="output directory (runs.jsonl: every run)")
+    sweep.add_argument("--resume", action="store_true", help="continue the sweep logged in --out: only missing runs")
     sweep.set_defaults(func=_sweep_command)
 
     co = subparsers.add_parser("codesign", help="joint morphology + stroke search vs the two-stage approach")
@@ -111,6 +141,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     co.add_argument("--period", type=float, default=1.5, dest="period_s")
     co.add_argument("--out", type=Path, default=Path("runs/codesign"))
     co.add_argument("--resume", action="store_true")
+    _where(co, batches=True)
     co.set_defaults(func=_codesign_command)
 
     paper = subparsers.add_parser(
@@ -136,7 +167,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     paper.add_argument("--quick", action="store_true", help="reduced resolution: minutes instead of hours")
     paper.add_argument("--out", type=Path, default=Path("runs/paper"), metavar="DIR", help="output directory (default runs/paper)")
-    paper.add_argument("--workers", type=int, default=None, metavar="N", help="local processes (default: all cores)")
+    _where(paper, batches=False)
     paper.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
     paper.set_defaults(func=_paper_command)
 
@@ -158,12 +189,14 @@ def _optimize_command(args: argparse.Namespace) -> int:
     objective = make_objective(args.scene, overrides)
     print(f"optimizing {args.scene} ({args.objective} TR, {args.iterations} iterations) → {args.out}/evaluations.jsonl")
     try:
-        summary = run_study(
-            objective, space, args.out, maximize=args.objective == "max",
-            iterations=args.iterations, plan=_plan(args), resume=args.resume,
-            context={"scene": args.scene, "overrides": overrides}, label=args.label or args.scene,
-            compare=tuple(compare), on_evaluation=_print_evaluation,
-        )
+        with _executor(args, default_workers=_batch_workers(args)) as executor:
+            summary = run_study(
+                objective, space, args.out, maximize=args.objective == "max",
+                iterations=args.iterations, plan=_plan(args), resume=args.resume,
+                context={"scene": args.scene, "overrides": overrides}, label=args.label or args.scene,
+                compare=tuple(compare), on_evaluation=_print_evaluation, batch_size=args.batch_size,
+                executor=executor,
+            )
     except KeyboardInterrupt:
         return _interrupted(args.out)
     print(
@@ -189,17 +222,23 @@ def _print_evaluation(record: dict) -> None:
 
 def _sweep_command(args: argparse.Namespace) -> int:
     families = FAMILIES if args.family == "both" else (args.family,)
-    result = run_sweep(
-        make_objective(args.scene, dict(args.overrides)), families,
-        plan=_plan(args, settle_periods=args.settle_periods, periods=args.periods),
-        amplitude_deg=args.amplitude_deg, scheduler=args.scheduler, workers=args.workers,
-        progress=not args.no_progress,
-    )
+    try:
+        with _executor(args) as executor:
+            result = run_sweep(
+                make_objective(args.scene, dict(args.overrides)), families,
+                plan=_plan(args, settle_periods=args.settle_periods, periods=args.periods),
+                amplitude_deg=args.amplitude_deg, executor=executor, log_path=args.out / "runs.jsonl",
+                resume=args.resume, context={"scene": args.scene, "overrides": dict(args.overrides)},
+                progress=not args.no_progress,
+            )
+    except KeyboardInterrupt:
+        return _interrupted(args.out)
     write_csv(result.runs, args.out / "runs.csv")
     write_csv(result.table, args.out / "table.csv")
     sweep_figure(result.table, ["thrust_ratio", "normalized_thrust"], args.out / "fig3_sweep.png")
     timing = {"wall_s": result.wall_s, "simulation_s": result.simulation_s, "workers": result.workers,
-              "runs": len(result.runs), "failed_runs": sum(1 for r in result.runs if r["error"])}
+              "runs": len(result.runs), "resumed_runs": result.resumed_runs,
+              "failed_runs": sum(1 for r in result.runs if r["error"])}
     (args.out / "summary.json").write_text(json.dumps(timing, indent=2) + "\n")
     print(format_table(result.table))
     print(f"{len(result.runs)} runs in {result.wall_s:.1f} s; wrote {args.out}/runs.csv, table.csv, fig3_sweep.png")
@@ -208,11 +247,13 @@ def _sweep_command(args: argparse.Namespace) -> int:
 
 def _codesign_command(args: argparse.Namespace) -> int:
     try:
-        report = codesign(
-            make_objective(args.scene, dict(args.overrides)), args.family, args.out, period_s=args.period_s,
-            budget=args.budget, plan=_plan(args), amplitude_deg=args.amplitude_deg, resume=args.resume,
-            context={"scene": args.scene, "overrides": dict(args.overrides)},
-        )
+        with _executor(args, default_workers=_batch_workers(args)) as executor:
+            report = codesign(
+                make_objective(args.scene, dict(args.overrides)), args.family, args.out, period_s=args.period_s,
+                budget=args.budget, plan=_plan(args), amplitude_deg=args.amplitude_deg, resume=args.resume,
+                context={"scene": args.scene, "overrides": dict(args.overrides)}, batch_size=args.batch_size,
+                executor=executor,
+            )
     except KeyboardInterrupt:
         return _interrupted(args.out)
     for approach in ("joint", "two_stage"):
@@ -228,7 +269,9 @@ def _paper_command(args: argparse.Namespace) -> int:
     from .paper import FULL, QUICK, generate_report
 
     resolution = dataclasses.replace(QUICK if args.quick else FULL, workers=args.workers)
-    path = generate_report(args.out, quick=args.quick, progress=not args.no_progress, resolution=resolution)
+    with _executor(args, default_workers=resolution.workers or os.cpu_count() or 1) as executor:
+        path = generate_report(args.out, quick=args.quick, progress=not args.no_progress, resolution=resolution,
+                               executor=executor)
     print(f"wrote {path} (figures and paper.json beside it)")
     return 0
 

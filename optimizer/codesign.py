@@ -18,6 +18,7 @@ import numpy as np
 from .bayes import DEFAULT_INITIAL_POINTS
 from .errors import OptimizerError
 from .evaluation import ITERATION_STREAM, MeasurementPlan, evaluate
+from .executor import Executor, InlineExecutor
 from .log import dumps
 from .objective import Objective, Overrides, Trace, WithOverrides
 from .space import ServoLimits, Variable, stroke_overrides, stroke_space, symmetric_stroke
@@ -63,8 +64,14 @@ def codesign(
     servo: ServoLimits = ServoLimits(),
     resume: bool = False,
     context: dict | None = None,
+    batch_size: int = 1,
+    executor: Executor | None = None,
 ) -> dict:
-    """Run both approaches with `budget` experiments each; write and return DIR/codesign.json."""
+    """Run both approaches with `budget` experiments each; write and return DIR/codesign.json.
+
+    Experiments run on `executor` (default: this process): the optimizer's `batch_size` at a
+    time, stage 1's all at once.
+    """
     if family not in MORPHOLOGY_VARIABLES:
         raise OptimizerError(f"unknown morphology family {family!r}; known: {sorted(MORPHOLOGY_VARIABLES)}")
     stage1 = budget // 3 if stage1_experiments is None else stage1_experiments
@@ -80,24 +87,28 @@ def codesign(
     joint = run_study(
         wrapped, stroke_space(period_s, amplitude_deg=amplitude_deg, servo=servo, extra=[variable]),
         out_dir / "joint", iterations=budget, plan=plan, resume=resume,
-        context={**context, "approach": "joint"}, label=f"{family} joint",
+        context={**context, "approach": "joint"}, label=f"{family} joint", batch_size=batch_size, executor=executor,
     )
 
     symmetric = stroke_overrides(symmetric_stroke(period_s, amplitude_deg))
+    ratios = [float(r) for r in np.linspace(variable.low, variable.high, stage1)]
+    executor = executor or InlineExecutor()
+    stage1_futures = [
+        executor.submit(evaluate, wrapped, {**symmetric, variable.name: ratio}, period_s, plan,
+                        ITERATION_STREAM, (_STAGE1_INDEX_OFFSET + k,))
+        for k, ratio in enumerate(ratios)
+    ]
     stage1_rows = []
-    for k, ratio in enumerate(np.linspace(variable.low, variable.high, stage1)):
-        result = evaluate(
-            wrapped, {**symmetric, variable.name: float(ratio)}, period_s, plan,
-            ITERATION_STREAM, (_STAGE1_INDEX_OFFSET + k,),
-        )
-        stage1_rows.append({"ratio": float(ratio), "thrust_ratio": result.thrust_ratio,
-                            "mean_thrust_N": result.mean_thrust_N})
+    for ratio, future in zip(ratios, stage1_futures):
+        result = future.result()
+        stage1_rows.append({"ratio": ratio, "thrust_ratio": result.thrust_ratio, "mean_thrust_N": result.mean_thrust_N})
     chosen = max(stage1_rows, key=lambda r: r["thrust_ratio"])["ratio"]
     fixed = WithOverrides(wrapped, {variable.name: chosen})
     two_stage = run_study(
         fixed, stroke_space(period_s, amplitude_deg=amplitude_deg, servo=servo),
         out_dir / "two_stage", iterations=budget - stage1, plan=plan, resume=resume,
         context={**context, "approach": "two-stage", "ratio": chosen}, label=f"{family} two-stage",
+        batch_size=batch_size, executor=executor,
     )
     report = {
         "family": family,

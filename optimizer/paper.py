@@ -6,20 +6,18 @@
 Every figure of the paper that simulation can redo (Figs. 3, 5–9) is rerun at one `Resolution`
 (quick: minutes; full: the paper's own budgets, hours), drawn as a PNG, and summed up in
 `DIR/report.md` with a table of the paper's numbers beside the simulated ones; every number is
-also in `DIR/paper.json`. Experiments are independent tasks on local processes: the optimizer
-studies (best and worst controller per feather, Fig. 7's strokes), the symmetric-stroke runs, the
-sweep runs, and the robot runs, which start as soon as the study giving their controller is done.
-A failing task is recorded and reported; it does not sink the report. Figures: `paper_figures`;
-the claims table and the markdown: `paper_report`.
+also in `DIR/paper.json`. Experiments are independent tasks on an `Executor` (local processes or a
+Dask cluster): the optimizer studies (best and worst controller per feather, Fig. 7's strokes), the
+symmetric-stroke runs, the sweep runs, and the robot runs, which start as soon as the study giving
+their controller is done. A failing task is recorded and reported; it does not sink the report.
+Figures: `paper_figures`; the claims table and the markdown: `paper_report`.
 """
 from __future__ import annotations
 
-import concurrent.futures as futures
 import dataclasses
 import json
 import math
 import os
-import sys
 import tempfile
 import time
 from dataclasses import dataclass
@@ -27,16 +25,16 @@ from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
-from tqdm import tqdm
 
 from .bayes import optimize
 from .evaluation import VALIDATION_STREAM, MeasurementPlan, noise_rng
+from .executor import Executor, Progress, make_executor
 from .loadcell import LoadCell, measure
 from .log import _json_safe
 from .objective import SceneObjective
 from .space import stroke_overrides, stroke_space, symmetric_stroke
 from .study import summarize
-from .sweep import PAPER_CONTROLLERS, Controller, Geometry, Task, _run_task, paper_geometries, tabulate
+from .sweep import PAPER_CONTROLLERS, Controller, Geometry, Task, paper_geometries, run_task, tabulate
 
 PERIOD_S = 1.5                      # the paper's period for Figs. 5, 6, 8, 9
 FAMILY_RATIOS = {"chordwise": (5.5, 7.5, 9.5), "spanwise": (1.5, 2.0, 2.5)}  # the paper's subsets (Fig. 3)
@@ -179,15 +177,17 @@ def _plan(res: Resolution) -> MeasurementPlan:
     return MeasurementPlan(settle_periods=res.settle_periods, periods=res.periods, seed=res.seed)
 
 
-def study_task(spec: StudySpec, res: Resolution, log_dir: str) -> dict:
+def study_task(spec: StudySpec, res: Resolution) -> dict:
     objective = SceneObjective("testbed", feather_overrides(spec.family, spec.ratio))
     space = stroke_space(spec.period_s)
     plan = _plan(res)
-    run = optimize(
-        objective, space, Path(log_dir) / f"{spec.key}.jsonl", iterations=spec.iterations, maximize=spec.maximize,
-        plan=plan, n_initial_points=min(res.initial_points, spec.iterations),
-        context={"scene": "testbed", "overrides": feather_overrides(spec.family, spec.ratio)},
-    )
+    # The log is the worker's scratch (the task may run on another host); the result carries it all.
+    with tempfile.TemporaryDirectory(prefix="featherstar-paper-") as log_dir:
+        run = optimize(
+            objective, space, Path(log_dir) / f"{spec.key}.jsonl", iterations=spec.iterations,
+            maximize=spec.maximize, plan=plan, n_initial_points=min(res.initial_points, spec.iterations),
+            context={"scene": "testbed", "overrides": feather_overrides(spec.family, spec.ratio)},
+        )
     best = run.best
     stroke = space.stroke(best.point)
     out = {
@@ -210,8 +210,9 @@ def study_task(spec: StudySpec, res: Resolution, log_dir: str) -> dict:
     return out
 
 
-def symmetric_task(family: str, res: Resolution, out_dir: str) -> dict:
-    """Fig. 5: one long run under the symmetric stroke, read like the bench (sets of periods)."""
+def symmetric_task(family: str, res: Resolution) -> dict:
+    """Fig. 5: one long run under the symmetric stroke, read like the bench (sets of periods); the
+    run's own figure comes back as PNG bytes (the task may run on another host)."""
     from cosim import run_scene
     from cosim.report import plot_run
 
@@ -223,7 +224,9 @@ def symmetric_task(family: str, res: Resolution, out_dir: str) -> dict:
     t, thrust = result.time, result["feather.thrust_N"]
     rng = noise_rng(res.seed, VALIDATION_STREAM, (100 + MORPHOLOGIES.index(family),))
     sets_measured = measure(t, thrust, PERIOD_S, load_cell, rng, settle_periods=settle, periods=per, windows=sets)
-    plot_run(result, Path(out_dir) / f"fig5_{family}_run.png")
+    with tempfile.TemporaryDirectory(prefix="featherstar-paper-") as tmp:
+        plot_run(result, Path(tmp) / "run.png")
+        run_png = (Path(tmp) / "run.png").read_bytes()
     window = t >= settle * PERIOD_S
     fold = result.signals.get("feather.flap_angle_rad")
     ratios = np.array([m.thrust_ratio for m in sets_measured])
@@ -236,14 +239,14 @@ def symmetric_task(family: str, res: Resolution, out_dir: str) -> dict:
         "noise_free_thrust_ratio": result.summary.get("thrust_ratio"),
         "peak_thrust_N": [float(thrust[window].min()), float(thrust[window].max())],
         "max_fold_deg": None if fold is None or family == "plain" else float(np.degrees(fold[window].max())),
-        "sim_s": t_end,
+        "sim_s": t_end, "run_png": run_png,
     }
 
 
 def sweep_task(task: Task, res: Resolution) -> dict:
     plan = MeasurementPlan(load_cell=LoadCell(noise_sd_N=0.0), settle_periods=res.sweep_settle_periods,
                            periods=res.sweep_periods, seed=res.seed)
-    row = _run_task(SceneObjective("kinematic"), task, plan, 60.0)
+    row = run_task(SceneObjective("kinematic"), task, plan, 60.0)
     period = task.controller.stroke(60.0).period_s
     return {"row": row, "sim_s": (res.sweep_settle_periods + res.sweep_periods) * period}
 
@@ -278,38 +281,41 @@ def _robot_controller(family: str, controller: str, results: dict) -> dict | str
     return {k: v for k, v in study["best_overrides"].items() if k.startswith("controller.")}
 
 
-def run_experiments(res: Resolution, out_dir: Path, *, progress: bool = True) -> tuple[dict, dict]:
-    """Run every task; returns (results by task label, timing)."""
+def run_experiments(
+    res: Resolution, out_dir: Path, *, progress: bool = True, executor: Executor | None = None
+) -> tuple[dict, dict]:
+    """Run every task on `executor` (default: local processes, `res.workers`); returns (results
+    by task label, timing)."""
     specs = study_specs(res)
     geometries = [g for family in ("chordwise", "spanwise") for g in sweep_geometries(family, res.sweep_geometries)]
     sweep_tasks = [Task(i, g, c) for i, (g, c) in enumerate((g, c) for g in geometries for c in res.sweep_controllers)]
-    workers = res.workers or os.cpu_count() or 1
+    owned = executor is None
+    executor = executor or make_executor(workers=res.workers or os.cpu_count() or 1)
     started = time.perf_counter()
     results: dict[str, dict] = {}
-    with tempfile.TemporaryDirectory(prefix="featherstar-paper-") as log_dir:
-        # Run order: the long studies first (the robot waits on them), short runs last to fill the gaps;
-        # the backlog is ours (the pool only ever holds one task per worker) so robot runs can jump it.
-        order = sorted(specs.values(), key=lambda s: (s.family == "plain", s.validate is False, -s.period_s))
-        backlog: list[tuple[str, Callable, tuple]] = [(f"study:{s.key}", study_task, (s, res, log_dir)) for s in order]
-        backlog += [(f"robot:{f}-baseline", robot_task, (f, "baseline", _robot_controller(f, "baseline", {}), res))
-                    for f in MORPHOLOGIES]
-        backlog += [(f"fig5:{f}", symmetric_task, (f, res, str(out_dir))) for f in MORPHOLOGIES]
-        backlog += [(f"sweep:{t.index}", sweep_task, (t, res)) for t in sweep_tasks]
-        total = len(backlog) + 2 * len(MORPHOLOGIES)
-        with futures.ProcessPoolExecutor(max_workers=workers) as pool, tqdm(
-            total=total, desc=f"paper ({res.name})", unit="task", file=sys.stderr, disable=not progress
-        ) as bar:
-            pending: dict[futures.Future, str] = {}
+    # Run order: the long studies first (the robot waits on them), short runs last to fill the gaps;
+    # the backlog is ours (the executor only ever holds one task per slot) so robot runs can jump it.
+    order = sorted(specs.values(), key=lambda s: (s.family == "plain", s.validate is False, -s.period_s))
+    backlog: list[tuple[str, Callable, tuple]] = [(f"study:{s.key}", study_task, (s, res)) for s in order]
+    backlog += [(f"robot:{f}-baseline", robot_task, (f, "baseline", _robot_controller(f, "baseline", {}), res))
+                for f in MORPHOLOGIES]
+    backlog += [(f"fig5:{f}", symmetric_task, (f, res)) for f in MORPHOLOGIES]
+    backlog += [(f"sweep:{t.index}", sweep_task, (t, res)) for t in sweep_tasks]
+    total = len(backlog) + 2 * len(MORPHOLOGIES)
+    try:
+        with Progress(total, f"paper ({res.name})", enabled=progress) as bar:
+            pending: dict[Any, str] = {}
             while backlog or pending:
-                while backlog and len(pending) < workers:
+                slots = executor.slots
+                while backlog and len(pending) < slots:
                     label, fn, args = backlog.pop(0)
-                    pending[pool.submit(_guarded, fn, *args)] = label
-                done, _ = futures.wait(pending, return_when=futures.FIRST_COMPLETED)
-                for future in done:
+                    pending[executor.submit(_guarded, fn, *args)] = label
+                for future in executor.wait_any(pending):
                     label = pending.pop(future)
-                    results[label] = future.result()
-                    bar.set_postfix_str(label, refresh=False)
-                    bar.update()
+                    results[label] = result = future.result()
+                    if "run_png" in result:
+                        (out_dir / f"fig5_{result['family']}_run.png").write_bytes(result.pop("run_png"))
+                    bar.update(running=len(pending), failed="error" in result, note=label)
                     kind, _, key = label.partition(":")
                     if kind == "study" and key in (f"{f}-{m}" for f in MORPHOLOGIES for m in ("max", "min")):
                         family, which = key.rsplit("-", 1)
@@ -318,11 +324,15 @@ def run_experiments(res: Resolution, out_dir: Path, *, progress: bool = True) ->
                         robot_label = f"robot:{family}-{controller}"
                         if isinstance(overrides, str):
                             results[robot_label] = {"error": overrides, "wall_s": 0.0, "sim_s": 0.0}
-                            bar.update()
+                            bar.update(running=len(pending), failed=True, note=robot_label)
                         else:
                             backlog.insert(0, (robot_label, robot_task, (family, controller, overrides, res)))
+    finally:
+        if owned:
+            executor.close()
     timing = {
-        "wall_s": time.perf_counter() - started, "workers": workers, "tasks": len(results),
+        "wall_s": time.perf_counter() - started, "workers": executor.slots, "executor": executor.describe(),
+        "tasks": len(results),
         "task_wall_s": sum(r.get("wall_s", 0.0) for r in results.values()),
         "simulated_s": sum(r.get("sim_s", 0.0) for r in results.values()),
         "cpu_count": os.cpu_count(), "planned_simulated_s": planned_simulated_s(res),
@@ -371,10 +381,11 @@ def _jsonable(value: Any) -> Any:
 
 
 def generate_report(
-    out_dir: str | Path, *, quick: bool, progress: bool = True, resolution: Resolution | None = None
+    out_dir: str | Path, *, quick: bool, progress: bool = True, resolution: Resolution | None = None,
+    executor: Executor | None = None,
 ) -> Path:
-    """Run the experiments at `resolution` (default QUICK or FULL) and write DIR/report.md, the
-    figures and DIR/paper.json; returns the report's path."""
+    """Run the experiments at `resolution` (default QUICK or FULL) on `executor` (default: local
+    processes) and write DIR/report.md, the figures and DIR/paper.json; returns the report's path."""
     from .paper_figures import draw_all
     from .paper_report import claims, write_markdown
 
@@ -382,7 +393,7 @@ def generate_report(
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     started = time.time()
-    results, timing = run_experiments(res, out_dir, progress=progress)
+    results, timing = run_experiments(res, out_dir, progress=progress, executor=executor)
     data = collect(results)
     figures = draw_all(data, res, out_dir)
     timing["total_wall_s"] = time.time() - started

@@ -7,6 +7,7 @@
 """
 from __future__ import annotations
 
+import functools
 import json
 import math
 import time
@@ -16,6 +17,7 @@ from typing import Callable, Mapping
 from .bayes import DEFAULT_INITIAL_POINTS, DEFAULT_ITERATIONS, OptimizationRun, optimize
 from .acquisition import DEFAULT_EXPLORATION_RATIO
 from .evaluation import MeasurementPlan, validate
+from .executor import Executor, InlineExecutor
 from .figures import progress_figure, validation_figure
 from .log import dumps
 from .objective import Objective
@@ -43,17 +45,23 @@ def summarize(
     plan: MeasurementPlan,
     repeats: int = VALIDATION_REPEATS,
     periods: int = VALIDATION_PERIODS,
+    executor: Executor | None = None,
 ) -> dict:
-    """Validate the optimum and the baseline; the dict written as summary.json."""
+    """Validate the optimum and the baseline (side by side on `executor`, default this process);
+    the dict written as summary.json."""
     best = run.best
     started = time.perf_counter()
     best_overrides = space.overrides(best.point)
-    validated = validate(objective, best_overrides, space.period_s, plan, _BEST_INDEX, repeats=repeats, periods=periods)
     extras = {k: v for k, v in best_overrides.items() if not k.startswith("controller.")}
     baseline_overrides = {**stroke_overrides(symmetric_stroke(space.period_s, space.amplitude_deg)), **extras}
-    baseline = validate(
-        objective, baseline_overrides, space.period_s, plan, _BASELINE_INDEX, repeats=repeats, periods=periods
-    )
+    executor = executor or InlineExecutor()
+    run_validation = functools.partial(validate, repeats=repeats, periods=periods)
+    validated, baseline = [
+        future.result() for future in [
+            executor.submit(run_validation, objective, overrides, space.period_s, plan, index)
+            for overrides, index in ((best_overrides, _BEST_INDEX), (baseline_overrides, _BASELINE_INDEX))
+        ]
+    ]
     validation_s = time.perf_counter() - started
     return {
         "objective": "max" if maximize else "min",
@@ -112,19 +120,22 @@ def run_study(
     label: str = "feather",
     compare: tuple[Mapping, ...] = (),
     on_evaluation: Callable[[dict], None] | None = None,
+    batch_size: int = 1,
+    executor: Executor | None = None,
 ) -> dict:
     """Optimize, validate and write DIR/evaluations.jsonl, DIR/summary.json and the two figures.
 
-    `compare` holds earlier summaries (with a "label") to draw in the same Fig. 8.
+    `compare` holds earlier summaries (with a "label") to draw in the same Fig. 8. Evaluations
+    run `batch_size` at a time on `executor` (see `optimizer.bayes.optimize`).
     """
     out_dir = Path(out_dir)
     started = time.perf_counter()
     run = optimize(
         objective, space, out_dir / "evaluations.jsonl", iterations=iterations, maximize=maximize, plan=plan,
         resume=resume, n_initial_points=n_initial_points, exploration_ratio=exploration_ratio,
-        context=context, on_evaluation=on_evaluation,
+        context=context, on_evaluation=on_evaluation, batch_size=batch_size, executor=executor,
     )
-    summary = summarize(objective, space, run, maximize=maximize, plan=plan)
+    summary = summarize(objective, space, run, maximize=maximize, plan=plan, executor=executor)
     summary["label"] = label
     summary["context"] = dict(context or {})
     progress_figure(run.evaluations, run.estimates, space.names, out_dir / "fig6_progress.png")

@@ -16,26 +16,23 @@ Per geometry the table reports the maximum over controllers of
   length l_root) under the same controller; undefined (NaN) where that reference thrust is not
   clearly positive.
 
-Tasks run on local processes (Python's default start method: forked on Linux, so workers start
-without re-importing anything; objectives load their scene lazily, so no FMU handle crosses the
-fork) or, given a scheduler address, on a Dask cluster. A failing task is recorded with its error
-instead of stopping the sweep.
+Runs go through an `optimizer.executor.Executor` (local processes by default, or a Dask cluster)
+and are appended to a JSONL log as they complete, so a sweep killed at any point resumes with only
+the missing runs. A failing run is recorded with its error instead of stopping the sweep.
 """
 from __future__ import annotations
 
-import concurrent.futures
 import csv
 import math
-import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterable, Iterator, Sequence
-
-from tqdm import tqdm
+from typing import Iterable, Mapping, Sequence
 
 from .errors import OptimizerError
 from .evaluation import SWEEP_STREAM, MeasurementPlan, evaluate
+from .executor import Executor, ProcessExecutor, Progress
+from .log import ExperimentLog
 from .objective import Objective
 from .space import stroke_overrides
 from cosim.stroke import Stroke
@@ -105,7 +102,7 @@ class Task:
     controller: Controller
 
 
-def _run_task(objective: Objective, task: Task, plan: MeasurementPlan, amplitude_deg: float) -> dict:
+def run_task(objective: Objective, task: Task, plan: MeasurementPlan, amplitude_deg: float) -> dict:
     """One sweep run, in a worker. Errors become data: one bad geometry must not sink the sweep."""
     stroke = task.controller.stroke(amplitude_deg)
     row = {
@@ -125,41 +122,23 @@ def _run_task(objective: Objective, task: Task, plan: MeasurementPlan, amplitude
             "sim_wall_s": result.sim_wall_s, "error": ""}
 
 
-def _local_results(objective, tasks, plan, amplitude_deg, workers) -> Iterator[dict]:
-    with concurrent.futures.ProcessPoolExecutor(max_workers=workers) as pool:
-        futures = [pool.submit(_run_task, objective, task, plan, amplitude_deg) for task in tasks]
-        try:
-            for future in concurrent.futures.as_completed(futures):
-                yield future.result()
-        finally:
-            for future in futures:
-                future.cancel()
-
-
-def _dask_results(objective, tasks, plan, amplitude_deg, address: str) -> Iterator[dict]:
-    try:
-        from dask.distributed import Client, as_completed
-    except ImportError as exc:
-        raise OptimizerError(
-            f"a Dask scheduler address ({address}) was given but dask.distributed is not installed; "
-            "install it with pip install 'dask[distributed]', or drop --scheduler to use local processes"
-        ) from exc
-    with Client(address) as client:
-        futures = [client.submit(_run_task, objective, task, plan, amplitude_deg, pure=False) for task in tasks]
-        for future in as_completed(futures):
-            yield future.result()
-
-
 @dataclass
 class SweepResult:
     runs: list[dict]
     table: list[dict]
     wall_s: float
-    workers: int | None  # None on a Dask cluster
+    workers: int  # tasks run at once: local processes or cluster threads
+    resumed_runs: int = 0  # read back from the log instead of run
 
     @property
     def simulation_s(self) -> float:
         return sum(r["sim_wall_s"] for r in self.runs)
+
+
+def sweep_tasks(families: Sequence[str], controllers: Sequence[Controller]) -> list[Task]:
+    """Every geometry of `families` (plus the references) × `controllers`, indexed in that order."""
+    geometries = [g for family in families for g in paper_geometries(family)]
+    return [Task(i, g, c) for i, (g, c) in enumerate((g, c) for g in geometries for c in controllers)]
 
 
 def run_sweep(
@@ -169,25 +148,64 @@ def run_sweep(
     controllers: Sequence[Controller] = PAPER_CONTROLLERS,
     plan: MeasurementPlan = MeasurementPlan(settle_periods=2, periods=3),
     amplitude_deg: float = 60.0,
-    scheduler: str | None = None,
-    workers: int | None = None,
+    executor: Executor | None = None,
+    log_path: str | Path | None = None,
+    resume: bool = False,
+    context: Mapping[str, object] | None = None,
     progress: bool = True,
 ) -> SweepResult:
-    """Run every geometry of `families` × `controllers` (plus the references) and tabulate."""
-    geometries = [g for family in families for g in paper_geometries(family)]
-    tasks = [Task(i, g, c) for i, (g, c) in enumerate((g, c) for g in geometries for c in controllers)]
-    workers = workers or os.cpu_count() or 1
+    """Run every geometry of `families` × `controllers` (plus the references) and tabulate.
+
+    `executor`: where runs go (default: local processes on all cores). `log_path`: every run is
+    appended there (JSONL, fsync'd) as it completes, so a killed client loses nothing finished;
+    `resume` skips the runs already in it. `context` (scene, overrides) goes into the log header,
+    so a log is never resumed with another setup.
+    """
+    tasks = sweep_tasks(families, controllers)
     started = time.perf_counter()
-    results = (
-        _dask_results(objective, tasks, plan, amplitude_deg, scheduler) if scheduler
-        else _local_results(objective, tasks, plan, amplitude_deg, workers)
-    )
-    runs = list(tqdm(results, total=len(tasks), desc="sweep", unit="run", disable=not progress))
-    runs.sort(key=lambda r: r["index"])
-    failed = [r for r in runs if r["error"]]
-    if len(failed) == len(runs):
+    log = None if log_path is None else ExperimentLog.open(
+        log_path, _header(families, controllers, plan, amplitude_deg, context), resume=resume)
+    runs = {r["index"]: _row(r) for r in (log.records if log else []) if r.get("kind") == "run"}
+    todo = [task for task in tasks if task.index not in runs]
+    owned = executor is None
+    executor = executor or ProcessExecutor()
+    try:
+        with Progress(len(tasks), "sweep", enabled=progress, initial=len(runs)) as bar:
+            pending = {executor.submit(run_task, objective, task, plan, amplitude_deg) for task in todo}
+            while pending:
+                for future in executor.wait_any(pending):
+                    pending.discard(future)
+                    row = future.result()
+                    runs[row["index"]] = row
+                    if log is not None:
+                        log.append({"kind": "run", **row})
+                    bar.update(running=min(len(pending), executor.slots), failed=bool(row["error"]))
+    finally:
+        if owned:
+            executor.close()
+    ordered = [runs[i] for i in sorted(runs)]
+    failed = [r for r in ordered if r["error"]]
+    if ordered and len(failed) == len(ordered):
         raise OptimizerError(f"every sweep run failed; first error: {failed[0]['error']}")
-    return SweepResult(runs, tabulate(runs), time.perf_counter() - started, None if scheduler else workers)
+    return SweepResult(ordered, tabulate(ordered), time.perf_counter() - started, executor.slots,
+                       len(tasks) - len(todo))
+
+
+def _header(families, controllers, plan: MeasurementPlan, amplitude_deg: float, context) -> dict:
+    return {
+        "sweep": {"families": list(families), "amplitude_deg": amplitude_deg,
+                  "controllers": [f"{c.t_up_s}/{c.t_down_s}/{c.t_hold_s}" for c in controllers]},
+        "measurement": plan.describe(),
+        "context": dict(context or {}),
+    }
+
+
+def _row(record: dict) -> dict:
+    """A logged run back as a row: the log spells non-finite floats as strings ('nan')."""
+    row = {k: v for k, v in record.items() if k != "kind"}
+    for key in ("thrust_ratio", "mean_thrust_N"):
+        row[key] = float(row[key])
+    return row
 
 
 def tabulate(runs: Iterable[dict]) -> list[dict]:

@@ -59,3 +59,30 @@ def test_ctrl_c_points_to_resume(tmp_path, capsys, monkeypatch):
     monkeypatch.setattr("optimizer.cli.run_study", interrupted)
     assert main(["optimize", "synthetic:plain", "--out", str(tmp_path)]) == 130
     assert "--resume" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("command", [
+    ["sweep", "synthetic:plain"], ["optimize", "synthetic:plain"], ["codesign", "synthetic:plain"], ["paper", "--quick"],
+])
+@pytest.mark.parametrize("address, reason", [
+    ("tcp://127.0.0.1:1", "refused"), ("nonsense://x:1", "unknown address scheme"), ("host-without-port", "port"),
+])
+def test_a_bad_scheduler_address_is_one_line_naming_it(tmp_path, capsys, command, address, reason):
+    assert main([*command, "--scheduler", address, "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1
+    assert f"cannot connect to the Dask scheduler at '{address}'" in err and reason in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_sweep_resume_and_batched_optimize_from_the_command_line(tmp_path, capsys):
+    out = tmp_path / "sweep"
+    argv = ["sweep", "synthetic:plain", "--family", "spanwise", "--workers", "1", "--out", str(out), "--no-progress"]
+    assert main(argv) == 0
+    assert main(argv) == 2 and "--resume" in capsys.readouterr().err
+    assert main([*argv, "--resume"]) == 0
+    assert json.loads((out / "summary.json").read_text())["resumed_runs"] == 14 * 12
+    opt = tmp_path / "opt"
+    assert main(["optimize", "synthetic:plain", "--iterations", "6", "--batch-size", "2", "--out", str(opt)]) == 0
+    assert json.loads((opt / "evaluations.jsonl").read_text().splitlines()[0])["batch_size"] == 2
+    assert main(["optimize", "synthetic:plain", "--batch-size", "0", "--out", str(tmp_path / "x")]) == 2

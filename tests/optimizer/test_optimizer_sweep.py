@@ -1,12 +1,12 @@
-import concurrent.futures
+import json
 import math
 import sys
-import types
 
 import pytest
 from optimizer_testing import FEATHER, FailingForWideFeathers, always_failing
 
 from optimizer.errors import OptimizerError
+from optimizer.executor import ProcessExecutor, make_executor
 from optimizer.sweep import (
     L_ROOT_M, PAPER_CONTROLLERS, W_SPINE_M, Controller, format_table, paper_geometries, run_sweep, tabulate,
 )
@@ -33,7 +33,8 @@ def test_paper_grid():
 
 
 def test_local_parallel_sweep_tabulates_per_geometry():
-    result = run_sweep(FEATHER, ["spanwise"], controllers=TWO_CONTROLLERS, workers=2, progress=False)
+    with ProcessExecutor(2) as executor:
+        result = run_sweep(FEATHER, ["spanwise"], controllers=TWO_CONTROLLERS, executor=executor, progress=False)
     assert [r["index"] for r in result.runs] == list(range(14 * 2))
     assert len(result.table) == 13 and result.workers == 2
     assert result.simulation_s > 0
@@ -43,19 +44,19 @@ def test_local_parallel_sweep_tabulates_per_geometry():
 
 
 def test_a_failing_run_is_recorded_not_fatal():
-    result = run_sweep(FailingForWideFeathers(), ["chordwise"], controllers=TWO_CONTROLLERS[:1], workers=2,
-                       progress=False)
+    result = run_sweep(FailingForWideFeathers(), ["chordwise"], controllers=TWO_CONTROLLERS[:1], progress=False)
     failed = [r for r in result.runs if r["error"]]
     assert len(failed) == 4 and all("solver failure" in r["error"] for r in failed)
     assert sum(r["failed_runs"] for r in result.table) == 4
     with pytest.raises(OptimizerError, match="every sweep run failed.*no master here"):
-        run_sweep(always_failing, ["spanwise"], controllers=TWO_CONTROLLERS[:1], workers=1, progress=False)
+        run_sweep(always_failing, ["spanwise"], controllers=TWO_CONTROLLERS[:1], executor=make_executor(workers=1),
+                  progress=False)
 
 
 def test_dask_requested_but_missing_is_a_clear_error(monkeypatch):
     monkeypatch.setitem(sys.modules, "dask.distributed", None)  # makes the import fail
-    with pytest.raises(OptimizerError, match=r"tcp://scheduler:8786.*pip install 'dask\[distributed\]'"):
-        run_sweep(FEATHER, ["spanwise"], scheduler="tcp://scheduler:8786", progress=False)
+    with pytest.raises(OptimizerError, match=r"tcp://scheduler:8786.*pip install 'featherstar\[dask\]'"):
+        make_executor("tcp://scheduler:8786")
 
 
 def test_normalized_thrust_is_relative_to_the_reference_under_the_same_controller():
@@ -73,32 +74,22 @@ def test_normalized_thrust_is_relative_to_the_reference_under_the_same_controlle
     assert math.isnan(lonely["normalized_thrust"])
 
 
-class _FakeDaskClient:
-    """The slice of dask.distributed.Client the sweep uses, run inline."""
-
-    addresses = []
-
-    def __init__(self, address):
-        self.addresses.append(address)
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        return False
-
-    def submit(self, fn, *args, pure=True):
-        assert pure is False  # every run draws its own noise: results must not be cached
-        future = concurrent.futures.Future()
-        future.set_result(fn(*args))
-        return future
-
-
-def test_dask_scheduler_gets_every_task(monkeypatch):
-    fake = types.ModuleType("dask.distributed")
-    fake.Client = _FakeDaskClient
-    fake.as_completed = lambda futures: iter(futures)
-    monkeypatch.setitem(sys.modules, "dask.distributed", fake)
-    result = run_sweep(FEATHER, ["spanwise"], controllers=TWO_CONTROLLERS, scheduler="tcp://x:8786", progress=False)
-    assert _FakeDaskClient.addresses == ["tcp://x:8786"]
-    assert len(result.runs) == 28 and result.workers is None
+def test_resume_runs_only_what_the_log_lacks(tmp_path):
+    log = tmp_path / "runs.jsonl"
+    full = run_sweep(FEATHER, ["spanwise"], controllers=TWO_CONTROLLERS, executor=make_executor(workers=1),
+                     log_path=log, context={"scene": "synthetic"}, progress=False)
+    lines = log.read_text().splitlines(keepends=True)
+    log.write_text("".join(lines[:6]) + lines[6][:20])  # header, 5 runs, and a record cut by a hard kill
+    with pytest.warns(UserWarning, match="dropping an incomplete last record"):
+        resumed = run_sweep(FEATHER, ["spanwise"], controllers=TWO_CONTROLLERS, executor=make_executor(workers=1),
+                            log_path=log, resume=True, context={"scene": "synthetic"}, progress=False)
+    assert resumed.resumed_runs == 5
+    assert [{k: v for k, v in r.items() if k != "sim_wall_s"} for r in resumed.runs] == \
+           [{k: v for k, v in r.items() if k != "sim_wall_s"} for r in full.runs]
+    indices = [json.loads(line)["index"] for line in log.read_text().splitlines()[1:]]
+    assert sorted(indices) == list(range(28))  # nothing run twice
+    with pytest.raises(OptimizerError, match="already holds a run"):
+        run_sweep(FEATHER, ["spanwise"], controllers=TWO_CONTROLLERS, log_path=log, progress=False)
+    with pytest.raises(OptimizerError, match="different setup"):
+        run_sweep(FEATHER, ["spanwise"], controllers=TWO_CONTROLLERS, log_path=log, resume=True,
+                  context={"scene": "testbed"}, progress=False)
