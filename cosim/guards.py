@@ -31,8 +31,9 @@ if TYPE_CHECKING:
 #: (thrust has sharp flap-impact peaks); 25 ms is 11 % off, 100 ms 50 % (bench/guard_margins.py).
 SAMPLES_PER_RAMP = 25
 #: Largest weak-coupling macro step on a feedback loop, in units of the loop's fastest time
-#: constant. The test bed (servo load filter 5 ms) goes unstable from 7-15 ms under Jacobi and
-#: 10-30 ms under Gauss-Seidel, for any N and contact stiffness (bench/stability_map.py).
+#: constant. Set when the test bed (servo load filter 5 ms) went unstable from 7-15 ms under
+#: Jacobi and 10-30 ms under Gauss-Seidel with the Morison feather; the energy-consistent feather
+#: stays bounded to 30-50 ms and beyond but is inaccurate past these steps (docs/stability.md).
 LOOP_STEP_PER_TIME_CONSTANT = {"jacobi": 1.0, "gauss-seidel": 2.0}
 #: A passive block reports this output; its power ports are `<x>_torque_Nm` outputs paired with
 #: `<x>_rate_rad_s` inputs (the actuator's torque and the rate it imposes).
@@ -107,9 +108,8 @@ def step_problems(plan: "Plan") -> list[str]:
                 problems.append(
                     f"master.step_s = {master.step_s:g} s is longer than {factor:g}x the fastest time constant on the "
                     f"feedback loop {' <-> '.join(loop)} ({where} = {tau_s:g} s): {master.coupling} coupling holds "
-                    f"the fed-back signal over the step and the loop goes unstable (measured on the test bed: "
-                    f"Jacobi from 7 ms, Gauss-Seidel from 10 ms). Use master.step_s <= {factor * tau_s:g} s, "
-                    "gauss-seidel, or strong coupling")
+                    f"the fed-back signal over the step, which makes the loop inaccurate or unstable "
+                    f"(docs/stability.md). Use master.step_s <= {factor * tau_s:g} s, gauss-seidel, or strong coupling")
     return problems
 
 
