@@ -241,7 +241,9 @@ def feather_model(morphology: str = "plain", n_units: int = 10, root_support: bo
         Variable("flap_angle_rad", "rad", "fold angle: mean over chordwise flaps, spanwise hinge fold; 0 plain"),
         Variable("mechanical_energy_J", "J", "structure and fluid kinetic, elastic and buoyancy energy (root frame)"),
         Variable("drag_thrust_N", "N", "the drag part of thrust_N (the rest, the momentum change, averages to zero)"),
-        Variable("momentum_y_Ns", "N.s", "structure momentum plus fluid impulse along +y (root frame)"),
+        Variable("momentum_y_Ns", "N.s",
+                 "structure momentum (root frame) plus fluid impulse along +y: thrust_N = drag_thrust_N minus its "
+                 "rate while the body speed is steady"),
         Variable("surge_mass_kg", "kg",
                  "mass that moves with the root along y, structure plus the added mass of each point's normal "
                  "along y; a body carrying the feather adds it to its inertia (thrust_N is the force on a root "
