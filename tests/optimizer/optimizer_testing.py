@@ -28,3 +28,17 @@ class FailingForWideFeathers:
 
 def always_failing(overrides, duration_s):
     raise RuntimeError("no master here")
+
+
+class Interrupting:
+    """The synthetic feather, but Ctrl-C (KeyboardInterrupt) in the middle of experiment number
+    `at` (1-based, counted in this process)."""
+
+    def __init__(self, at):
+        self.calls, self.at = 0, at
+
+    def __call__(self, overrides, duration_s):
+        self.calls += 1
+        if self.calls == self.at:
+            raise KeyboardInterrupt
+        return FEATHER(overrides, duration_s)

@@ -1,7 +1,7 @@
 """Batches of the Bayesian optimizer (constant liar): deterministic, consistent with sequential
 asks, and resumable mid-batch to exactly the uninterrupted run."""
 import pytest
-from optimizer_testing import FEATHER, PLAN, SPACE, logged_evaluations
+from optimizer_testing import FEATHER, PLAN, SPACE, Interrupting, logged_evaluations
 
 from optimizer.bayes import StrokeOptimizer, optimize
 from optimizer.errors import OptimizerError
@@ -52,23 +52,10 @@ def batched_run(tmp_path_factory):
     return path
 
 
-class _Interrupting:
-    """Ctrl-C in the middle of experiment number `at` (1-based, counted in this process)."""
-
-    def __init__(self, at):
-        self.calls, self.at = 0, at
-
-    def __call__(self, overrides, duration_s):
-        self.calls += 1
-        if self.calls == self.at:
-            raise KeyboardInterrupt
-        return FEATHER(overrides, duration_s)
-
-
 def test_resume_mid_batch_reproduces_the_uninterrupted_run(batched_run, tmp_path):
     path = tmp_path / "evaluations.jsonl"
     with pytest.raises(KeyboardInterrupt):  # batches 0-2, 3-5, 6-8: stopped inside the third
-        optimize(_Interrupting(at=8), SPACE, path, iterations=BATCH_ITERATIONS, plan=PLAN, batch_size=3)
+        optimize(Interrupting(at=8), SPACE, path, iterations=BATCH_ITERATIONS, plan=PLAN, batch_size=3)
     assert [r["index"] for r in logged_evaluations(path)] == list(range(7))
     optimize(FEATHER, SPACE, path, iterations=BATCH_ITERATIONS, plan=PLAN, batch_size=3, resume=True)
     assert logged_evaluations(path) == logged_evaluations(batched_run)

@@ -7,7 +7,7 @@ from optimizer.bayes import StrokeOptimizer, optimize
 from optimizer.errors import OptimizerError
 from optimizer.space import stroke_overrides, stroke_space, symmetric_stroke
 
-from optimizer_testing import FEATHER, PLAN, SHORT_ITERATIONS, SPACE, logged_evaluations
+from optimizer_testing import FEATHER, PLAN, SHORT_ITERATIONS, SPACE, Interrupting, logged_evaluations
 
 
 def _true_extremes():
@@ -49,23 +49,10 @@ def test_resume_continues_exactly_where_it_stopped(short_run, tmp_path):
     assert logged_evaluations(path) == logged_evaluations(short_run)
 
 
-class _Interrupting:
-    """Raises KeyboardInterrupt (Ctrl-C) in the middle of experiment number `at`."""
-
-    def __init__(self, at):
-        self.calls, self.at = 0, at
-
-    def __call__(self, overrides, duration_s):
-        self.calls += 1
-        if self.calls == self.at:
-            raise KeyboardInterrupt
-        return FEATHER(overrides, duration_s)
-
-
 def test_ctrl_c_loses_nothing(short_run, tmp_path):
     path = tmp_path / "evaluations.jsonl"
     with pytest.raises(KeyboardInterrupt):
-        optimize(_Interrupting(at=9), SPACE, path, iterations=SHORT_ITERATIONS, plan=PLAN)
+        optimize(Interrupting(at=9), SPACE, path, iterations=SHORT_ITERATIONS, plan=PLAN)
     assert [r["index"] for r in logged_evaluations(path)] == list(range(8))
     optimize(FEATHER, SPACE, path, iterations=SHORT_ITERATIONS, plan=PLAN, resume=True)
     assert logged_evaluations(path) == logged_evaluations(short_run)
