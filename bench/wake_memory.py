@@ -23,7 +23,7 @@ strokes (a grid), next to the quasi-steady model.
 
 Writes <out>/wake_memory.json and <out>/wake_memory.png (default docs/results).
 
-    python bench/wake_memory.py [--out DIR] [--quick]      (~6 min on 2 cores; --quick ~1 min)
+    python bench/wake_memory.py [--out DIR] [--quick]      (~10 min alone on 2 cores, 22 min under load; --quick ~5 min)
 """
 from __future__ import annotations
 
@@ -248,7 +248,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "results", help="where the JSON and plot go")
-    parser.add_argument("--quick", action="store_true", help="fewer fit points and strokes (~1 min)")
+    parser.add_argument("--quick", action="store_true", help="fewer fit points and strokes (~5 min)")
     args = parser.parse_args(argv)
     run(args.out, args.quick)
     return 0

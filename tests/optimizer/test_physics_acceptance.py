@@ -52,7 +52,7 @@ def test_chordwise_worst_is_below_the_baseline(tmp_path):
     "slow recovery stroke (a rigid plate's drag-only TR is exactly t_up/t_down); the paper's plain feather "
     "does not show it. The model has no wake: the water a fast stroke sets moving meets the next stroke; "
     "bench/wake_memory.py shows wake laws fitted to sinusoidal plate data cut a rigid plate's best TR from 2.89 "
-    "to 1.24-1.48, the law undecided by those data (docs/model.md, 'What the model does not reproduce')",
+    "to 1.25-1.50, the law undecided by those data (docs/model.md, 'What the model does not reproduce')",
 )
 def test_plain_feather_gains_no_asymmetry_from_the_optimizer(tmp_path):
     best = _study(tmp_path, PLAIN, "max")
