@@ -42,8 +42,8 @@ FMI_HEADERS = Path(fmpy.__file__).parent / "c-code"
 # (`start`, `evaluate`, the model functions) would otherwise be visible to the whole process.
 CFLAGS = ("-O2", "-fPIC", "-fvisibility=hidden", "-DCASADI_SYMBOL_EXPORT=")
 
-# Above this much C, the model function itself is compiled at -O1 (see _prepare_model_source).
-_HUGE_MODEL_BYTES = 3_000_000
+#: Above this much C, the model function itself is compiled at -O1 (see _prepare_model_source).
+HUGE_MODEL_BYTES = 600_000
 
 # Defined in the wrap source (with the instantiation token the shell checks importers against)
 # rather than on the command line, so that sources/ stays buildable from buildDescription.xml
@@ -258,8 +258,8 @@ def _prepare_model_source(source: Path, identifier: str) -> tuple[str, ...]:
     model function and at -O2 takes many minutes for a 20-state feather, yet it only serves
     fmi3GetDirectionalDerivative / fmi3GetAdjointDerivative: it is compiled without
     optimization. The model function, which the integrators call, keeps -O2 unless it is huge:
-    for 9 MB of C (42-state feather) -O2 took 100 s, -O1 with priority colouring 11 s, and
-    evaluation is only ~1.4x slower. CasADi writes the derivatives after the model function,
+    for the 0.8 MB of the chordwise feather at N = 40 (O(N) chain solve) -O2 took 32 s, -O1 with
+    priority colouring 8 s, and evaluation is ~1.2x slower (bench/feather_speed.py). CasADi writes the derivatives after the model function,
     headed by a `/* fwd1_<id>:(...` comment; without it, everything is the model function.
     """
     text = source.read_text()
@@ -268,7 +268,7 @@ def _prepare_model_source(source: Path, identifier: str) -> tuple[str, ...]:
         source.write_text(text[:model_part] + '#pragma GCC optimize ("O0")\n' + text[model_part:])
     else:
         model_part = len(text)
-    return ("-O1", "-fira-algorithm=priority") if model_part > _HUGE_MODEL_BYTES else ()
+    return ("-O1", "-fira-algorithm=priority") if model_part > HUGE_MODEL_BYTES else ()
 
 
 def _add_shell_to_build_description(path: Path) -> None:
