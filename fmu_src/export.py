@@ -15,6 +15,7 @@ from __future__ import annotations
 import fcntl
 import hashlib
 import json
+import math
 import os
 import re
 import shutil
@@ -37,6 +38,7 @@ SHELL_SOURCES = (
     "fmi3_shell.c", "fmi3_model_exchange.c", "fmi3_cosim.c", "fmi3_state.c", "fmi3_unsupported.c"
 )
 PLATFORM = "x86_64-linux"
+TIME_VR = 4294967295  # CasADi's value reference of `time`
 FMI_HEADERS = Path(fmpy.__file__).parent / "c-code"
 # Hidden visibility leaves only the shell's fmi3* functions exported: CasADi's globals
 # (`start`, `evaluate`, the model functions) would otherwise be visible to the whole process.
@@ -75,10 +77,18 @@ static void fs_set_states(void* memory, double t, const double* x) {
   if (x) for (i = 0; i < N_X; ++i) m->v[x_vr[i]] = x[i];
   m->up_to_date = 0;
 }
+static const double* fs_values(const void* memory) { return ((const casadi_fmi_memory*)memory)->v; }
+static int fs_evaluate(void* memory) {
+  casadi_fmi_memory* m = (casadi_fmi_memory*)memory;
+  if (evaluate(m)) return 1;
+  m->up_to_date = 1;
+  return 0;
+}
 const fs_model* fs_model_info(void) {
   static const fs_model info = {FS_INSTANTIATION_TOKEN, sizeof(casadi_fmi_memory),
                                 N_VAR, N_X, N_U, N_P, N_ZERO,
-                                var_offset, x_vr, u_vr, p_vr, fs_rhs, fs_get_states, fs_set_states};
+                                var_offset, x_vr, u_vr, p_vr, N_Y, y_vr, fs_limit_by_vr, fs_var_name,
+                                fs_rhs, fs_get_states, fs_set_states, fs_values, fs_evaluate};
   return &info;
 }
 """
@@ -159,7 +169,8 @@ def _build(model: Model, shell: dict[str, bytes], work: Path) -> Path:
     wrap = work / f"{identifier}_wrap.c"
     token = ET.parse(xml_path).getroot().get("instantiationToken", "")
     prefix = _WRAP_PREFIX + f'#define FS_INSTANTIATION_TOKEN "{token}"\n'
-    wrap.write_text(prefix + wrap.read_text() + _WRAP_HOOKS)
+    tables = _variable_tables(model, ET.parse(xml_path).getroot())
+    wrap.write_text(prefix + wrap.read_text() + tables + _WRAP_HOOKS)
     model_flags = _prepare_model_source(work / f"{identifier}.c", identifier)
     for name, source in shell.items():
         (work / name).write_bytes(source)
@@ -172,6 +183,41 @@ def _build(model: Model, shell: dict[str, bytes], work: Path) -> Path:
         for local, archived in sorted(files.items(), key=lambda item: item[1]):
             archive.write(work / local, os.path.normpath(archived))
     return fmu
+
+
+def _c_string(text: str) -> str:
+    """A C string literal of `text` (UTF-8, every non-ASCII or special byte escaped)."""
+    plain = set(range(32, 127)) - set(b'"\\?')
+    return '"' + "".join(chr(b) if b in plain else f"\\{b:03o}" for b in text.encode()) + '"'
+
+
+def _c_double(value: float) -> str:
+    return repr(float(value)) if math.isfinite(value) else ("HUGE_VAL" if value > 0 else "-HUGE_VAL")
+
+
+def _variable_tables(model: Model, root: ET.Element) -> str:
+    """C tables the shell checks against: every variable's name by value reference, and the
+    valid range (or choices) of every parameter, as declared in the Model."""
+    by_vr = {int(v.get("valueReference")): v.get("name") for v in root.iter("Float64")}
+    n_var = max((vr for vr in by_vr if vr != TIME_VR), default=0) + 1
+    names = ",\n  ".join(_c_string(by_vr.get(vr, "?")) for vr in range(n_var))
+    vr_of = {name: vr for vr, name in by_vr.items()}
+    limits = ["{0.0, 0.0, 0, 0, NULL, \"\"}"] * n_var
+    choice_arrays = []
+    for p in model.parameters:
+        choices = "NULL"
+        if p.choices:
+            choices = f"fs_choices_{len(choice_arrays)}"
+            choice_arrays.append(f"static const double {choices}[] = {{{', '.join(map(_c_double, p.choices))}}};")
+        limits[vr_of[p.name]] = (f"{{{_c_double(p.minimum)}, {_c_double(p.maximum)}, {int(p.exclusive_minimum)}, "
+                                 f"{len(p.choices or ())}, {choices}, {_c_string(p.unit)}}}")
+    separator = ",\n  "
+    return ("\n/* Appended by featherstar (fmu_src/export.py): names and parameter ranges. */\n"
+            "#include <math.h>\n#include \"fmi3_shell.h\"\n"
+            f"#if N_VAR != {n_var}\n#error variable tables do not match CasADi's N_VAR\n#endif\n"
+            + "\n".join(choice_arrays) + "\n"
+            f"static const char* const fs_var_name[N_VAR] = {{\n  {names}}};\n"
+            f"static const fs_limit fs_limit_by_vr[N_VAR] = {{\n  {separator.join(limits)}}};\n")
 
 
 def _export_sources(model: Model, identifier: str, work: Path) -> dict[str, str]:
@@ -313,7 +359,9 @@ def _patch_model_description(text: str, model: Model, identifier: str) -> str:
             ET.SubElement(element, "BaseUnit", {k: str(v) for k, v in base.items()})
     log_categories = ET.Element("LogCategories")
     ET.SubElement(log_categories, "Category", name="logStatusError",
-                  description="Calls out of sequence, bad arguments, failed steps")
+                  description="Calls out of sequence, bad arguments (NaN, out-of-range parameters), failed steps")
+    ET.SubElement(log_categories, "Category", name="logStatusDiscard",
+                  description="A result is not finite: retry with a shorter step or other inputs")
     root.insert(position + 1, unit_defs)
     root.insert(position + 2, log_categories)
 

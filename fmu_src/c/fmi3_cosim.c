@@ -18,6 +18,7 @@
  */
 #include <float.h>
 #include <math.h>
+#include <stdio.h>
 
 #include "fmi3Functions.h"
 #include "fmi3_shell.h"
@@ -117,6 +118,24 @@ static double trial_step(stepper* st, double t, double h) {
   return error_norm(st, y, st->y_new);
 }
 
+/* Why the outputs at the current point cannot be passed on, or NULL: a step that ends with a
+ * NaN output is a failed step, not an OK one the importer would only notice later. Evaluating
+ * here costs nothing extra: the importer's next fmi3GetFloat64 reuses the result. */
+static const char* outputs_problem(fs_instance* s, char* why, size_t size) {
+  const fs_model* m = s->model;
+  const double* v;
+  size_t i;
+  if (m->evaluate(s->memory)) return "model evaluation failed";
+  v = m->values(s->memory);
+  for (i = 0; i < m->n_y; ++i) {
+    if (!isfinite(v[m->y_vr[i]])) {
+      snprintf(why, size, "output '%s' is not finite (%g)", m->var_name[m->y_vr[i]], v[m->y_vr[i]]);
+      return why;
+    }
+  }
+  return NULL;
+}
+
 /* Integrates from s->dyn.time to t_end; on failure returns the cause, t and x at the last
  * accepted point are left in the instance. */
 static const char* integrate(fs_instance* s, double t_end) {
@@ -203,6 +222,7 @@ FMI3_Export fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentComm
                                   fmi3Boolean* earlyReturn, fmi3Float64* lastSuccessfulTime) {
   fs_instance* s = fs_check(instance, "fmi3DoStep", FS_STEP, FS_CO_SIMULATION);
   const char* cause;
+  char why[256];
   (void)noSetFMUStatePriorToCurrentPoint;
   if (!s) return fmi3Error;
   if (eventHandlingNeeded) *eventHandlingNeeded = fmi3False;
@@ -224,6 +244,7 @@ FMI3_Export fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentComm
   }
   s->dyn.time = currentCommunicationPoint;
   cause = integrate(s, currentCommunicationPoint + communicationStepSize);
+  if (!cause) cause = outputs_problem(s, why, sizeof why);
   if (lastSuccessfulTime) *lastSuccessfulTime = s->dyn.time;
   if (cause) {
     s->dyn.mode = FS_FAILED;

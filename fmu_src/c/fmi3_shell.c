@@ -17,7 +17,7 @@
 #include "fmi3Functions.h"
 #include "fmi3_shell.h"
 
-#define GET_MODES (FS_INITIALIZATION | FS_EVENT | FS_CONTINUOUS_TIME | FS_STEP | FS_TERMINATED | FS_FAILED)
+#define GET_MODES (FS_INSTANTIATED | FS_INITIALIZATION | FS_EVENT | FS_CONTINUOUS_TIME | FS_STEP | FS_TERMINATED | FS_FAILED)
 #define SET_MODES (FS_INSTANTIATED | FS_INITIALIZATION | FS_EVENT | FS_CONTINUOUS_TIME | FS_STEP)
 #define DERIVATIVE_MODES (FS_INITIALIZATION | FS_EVENT | FS_CONTINUOUS_TIME | FS_STEP | FS_TERMINATED)
 
@@ -43,15 +43,26 @@ const char* fs_mode_name(fs_mode mode) {
   return "unknown";
 }
 
-void fs_error(const fs_instance* s, const char* fmt, ...) {
+static void log_status(const fs_instance* s, fmi3Status status, const char* fmt, va_list args) {
   char message[512];
-  va_list args;
   /* Errors are reported whatever the logging setting: an importer still needs the cause. */
   if (!s->log) return;
-  va_start(args, fmt);
   vsnprintf(message, sizeof message, fmt, args);
+  s->log(s->environment, status, status == fmi3Discard ? "logStatusDiscard" : "logStatusError", message);
+}
+
+void fs_error(const fs_instance* s, const char* fmt, ...) {
+  va_list args;
+  va_start(args, fmt);
+  log_status(s, fmi3Error, fmt, args);
   va_end(args);
-  s->log(s->environment, fmi3Error, "logStatusError", message);
+}
+
+void fs_discard(const fs_instance* s, const char* fmt, ...) {
+  va_list args;
+  va_start(args, fmt);
+  log_status(s, fmi3Discard, fmt, args);
+  va_end(args);
 }
 
 fs_instance* fs_check(fmi3Instance instance, const char* function, unsigned modes, unsigned kinds) {
@@ -70,6 +81,13 @@ fs_instance* fs_check(fmi3Instance instance, const char* function, unsigned mode
 }
 
 size_t fs_work_size(size_t n_x) { return 10 * n_x; }
+
+long fs_first_non_finite(const double* values, size_t n) {
+  size_t i;
+  for (i = 0; i < n; ++i)
+    if (!isfinite(values[i])) return (long)i;
+  return -1;
+}
 
 static void reset_dynamic(fs_instance* s) {
   s->dyn.mode = FS_INSTANTIATED;
@@ -263,10 +281,31 @@ static int check_array_args(const fs_instance* s, const char* function, const vo
   return 1;
 }
 
+static const char* var_name(const fs_instance* s, fmi3ValueReference vr) {
+  return vr == FS_TIME_VR ? "time" : s->model->var_name[vr];
+}
+
+/* In Instantiated only start values exist: those of states, inputs and parameters (and time). */
+static fmi3Status get_start_values(fs_instance* s, const fmi3ValueReference vr[], size_t n_vr,
+                                   fmi3Float64 values[]) {
+  const double* v = s->model->values(s->memory);
+  size_t i;
+  for (i = 0; i < n_vr; ++i) {
+    if (vr[i] != FS_TIME_VR && s->vr_kind[vr[i]] == FS_VR_CALCULATED) {
+      fs_error(s, "fmi3GetFloat64: '%s' (value reference %u) is calculated: it has no value before "
+               "fmi3EnterInitializationMode", var_name(s, vr[i]), (unsigned)vr[i]);
+      return fmi3Error;
+    }
+    values[i] = vr[i] == FS_TIME_VR ? s->dyn.time : v[vr[i]];
+  }
+  return fmi3OK;
+}
+
 FMI3_Export fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                                       size_t nValueReferences, fmi3Float64 values[], size_t nValues) {
   fs_instance* s = fs_check(instance, "fmi3GetFloat64", GET_MODES, FS_ANY_KIND);
   size_t i, k, n;
+  long bad;
   int has_time = 0;
   if (!s) return fmi3Error;
   if (nValueReferences && !valueReferences) {
@@ -276,12 +315,24 @@ FMI3_Export fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueRefe
   n = count_values(s, "fmi3GetFloat64", valueReferences, nValueReferences, 1);
   if (!check_array_args(s, "fmi3GetFloat64", valueReferences, nValueReferences, values, nValues, n))
     return fmi3Error;
+  if (s->dyn.mode == FS_INSTANTIATED)
+    return get_start_values(s, valueReferences, nValueReferences, values);
   for (i = 0; i < nValueReferences; ++i) has_time |= valueReferences[i] == FS_TIME_VR;
   if (!has_time) {
-    if (casadi_fmi3GetFloat64(s->memory, valueReferences, nValueReferences, values, nValues) == fmi3OK)
-      return fmi3OK;
-    fs_error(s, "fmi3GetFloat64: model evaluation failed at t=%g", s->dyn.time);
-    return fmi3Error;
+    if (casadi_fmi3GetFloat64(s->memory, valueReferences, nValueReferences, values, nValues) != fmi3OK) {
+      fs_error(s, "fmi3GetFloat64: model evaluation failed at t=%g", s->dyn.time);
+      return fmi3Error;
+    }
+    /* Variables are scalars: value i belongs to valueReferences[i]. A NaN is never passed on
+     * as a valid result: the importer would only find out much later, and not where. Discard
+     * (not Error) because an ME importer may retry with a shorter step (FMI 3.0, 2.2.3). */
+    bad = fs_first_non_finite(values, nValues);
+    if (bad >= 0) {
+      fs_discard(s, "fmi3GetFloat64: '%s' is not finite (%g) at t=%.10g", var_name(s, valueReferences[bad]),
+                 values[bad], s->dyn.time);
+      return fmi3Discard;
+    }
+    return fmi3OK;
   }
   /* `time` lives in the shell, so a mixed request is answered one reference at a time. */
   for (i = 0, k = 0; i < nValueReferences; ++i) {
@@ -290,10 +341,39 @@ FMI3_Export fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueRefe
       continue;
     }
     n = s->model->var_offset[valueReferences[i] + 1] - s->model->var_offset[valueReferences[i]];
-    if (fmi3GetFloat64(s, &valueReferences[i], 1, &values[k], n) != fmi3OK) return fmi3Error;
+    fmi3Status status = fmi3GetFloat64(s, &valueReferences[i], 1, &values[k], n);
+    if (status != fmi3OK) return status;
     k += n;
   }
   return fmi3OK;
+}
+
+/* Whether `value` may be given to variable `vr`; logs why not. Parameters must lie in their
+ * physical range, inputs and states must be finite: the model code would compute with anything. */
+static int valid_value(const fs_instance* s, fmi3ValueReference vr, double value) {
+  const fs_limit* limit = &s->model->limit[vr];
+  size_t i;
+  int ok;
+  if (s->vr_kind[vr] != FS_VR_PARAMETER) {
+    if (isfinite(value)) return 1;
+    fs_error(s, "fmi3SetFloat64: %s '%s' = %g refused: not finite",
+             s->vr_kind[vr] == FS_VR_INPUT ? "input" : "state", var_name(s, vr), value);
+    return 0;
+  }
+  if (limit->n_choices) {
+    for (i = 0; i < limit->n_choices; ++i)
+      if (value == limit->choices[i]) return 1;
+    fs_error(s, "fmi3SetFloat64: parameter '%s' = %g refused: it must be one of the %zu values its "
+             "description lists", var_name(s, vr), value, limit->n_choices);
+    return 0;
+  }
+  ok = isfinite(value) && (limit->exclusive_min ? value > limit->min : value >= limit->min) &&
+       value <= limit->max;
+  if (!ok)
+    fs_error(s, "fmi3SetFloat64: parameter '%s' = %g %s refused: outside its valid range %c%g, %g] %s",
+             var_name(s, vr), value, limit->unit, limit->exclusive_min ? '(' : '[', limit->min,
+             limit->max, limit->unit);
+  return ok;
 }
 
 FMI3_Export fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
@@ -316,6 +396,8 @@ FMI3_Export fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueRefe
                kind == FS_VR_CALCULATED ? " (it is calculated)" : "");
       return fmi3Error;
     }
+    /* All or nothing: a refused value leaves every variable as it was. */
+    if (!valid_value(s, valueReferences[i], values[i])) return fmi3Error;
   }
   s->dyn.fsal_valid = 0;
   return casadi_fmi3SetFloat64(s->memory, valueReferences, nValueReferences, values, nValues);
