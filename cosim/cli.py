@@ -15,7 +15,7 @@ from typing import Iterator, Sequence
 
 from fmu_src.errors import FeatherstarError
 
-PLUGINS = ("fmu_src.cli", "optimizer.cli", "hil.cli", "cosim.dashboard")
+PLUGINS = ("fmu_src.cli", "cosim.ssp_cli", "optimizer.cli", "hil.cli", "cosim.dashboard")
 
 
 def _parse_set(items: Sequence[str]) -> dict[str, str]:
