@@ -362,7 +362,7 @@ class _SystemReader:
                 self.refuse(f"{label} names element '{element}', which is not a component of the system")
                 return None
         src = self._endpoint(start, own, connectors, "input", label)
-        if end[0] is None and src and end[1] not in own and connectors.get(end[1]) == "output":
+        if end[0] is None and src and end[1].partition(".")[0] not in own and connectors.get(end[1]) == "output":
             return (src,)  # a system output: recorded
         dst = self._endpoint(end, own, connectors, "output", label)
         return f"{src} -> {dst}" if src and dst else None
