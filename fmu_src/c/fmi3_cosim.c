@@ -18,7 +18,6 @@
  */
 #include <float.h>
 #include <math.h>
-#include <stdio.h>
 
 #include "fmi3Functions.h"
 #include "fmi3_shell.h"
@@ -116,24 +115,6 @@ static double trial_step(stepper* st, double t, double h) {
     y[i] = h * (E1 * st->k1[i] + E3 * st->k3[i] + E4 * st->k4[i] + E5 * st->k5[i] +
                 E6 * st->k6[i] + E7 * st->k7[i]);
   return error_norm(st, y, st->y_new);
-}
-
-/* Why the outputs at the current point cannot be passed on, or NULL: a step that ends with a
- * NaN output is a failed step, not an OK one the importer would only notice later. Evaluating
- * here costs nothing extra: the importer's next fmi3GetFloat64 reuses the result. */
-static const char* outputs_problem(fs_instance* s, char* why, size_t size) {
-  const fs_model* m = s->model;
-  const double* v;
-  size_t i;
-  if (m->evaluate(s->memory)) return "model evaluation failed";
-  v = m->values(s->memory);
-  for (i = 0; i < m->n_y; ++i) {
-    if (!isfinite(v[m->y_vr[i]])) {
-      snprintf(why, size, "output '%s' is not finite (%g)", m->var_name[m->y_vr[i]], v[m->y_vr[i]]);
-      return why;
-    }
-  }
-  return NULL;
 }
 
 /* Integrates from s->dyn.time to t_end; on failure returns the cause, t and x at the last
@@ -244,7 +225,7 @@ FMI3_Export fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentComm
   }
   s->dyn.time = currentCommunicationPoint;
   cause = integrate(s, currentCommunicationPoint + communicationStepSize);
-  if (!cause) cause = outputs_problem(s, why, sizeof why);
+  if (!cause) cause = fs_outputs_problem(s, why, sizeof why);
   if (lastSuccessfulTime) *lastSuccessfulTime = s->dyn.time;
   if (cause) {
     s->dyn.mode = FS_FAILED;

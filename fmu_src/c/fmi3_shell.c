@@ -89,6 +89,24 @@ long fs_first_non_finite(const double* values, size_t n) {
   return -1;
 }
 
+/* Why the outputs at the current point cannot be passed on, or NULL: a step that ends with a
+ * NaN output is a failed step, not an OK one the importer would only notice later. Evaluating
+ * here costs nothing extra: the importer's next fmi3GetFloat64 reuses the result. */
+const char* fs_outputs_problem(fs_instance* s, char* why, size_t size) {
+  const fs_model* m = s->model;
+  const double* v;
+  size_t i;
+  if (m->evaluate(s->memory)) return "model evaluation failed";
+  v = m->values(s->memory);
+  for (i = 0; i < m->n_y; ++i) {
+    if (!isfinite(v[m->y_vr[i]])) {
+      snprintf(why, size, "output '%s' is not finite (%g)", m->var_name[m->y_vr[i]], v[m->y_vr[i]]);
+      return why;
+    }
+  }
+  return NULL;
+}
+
 static void reset_dynamic(fs_instance* s) {
   s->dyn.mode = FS_INSTANTIATED;
   s->dyn.time = 0.0;
@@ -213,7 +231,17 @@ FMI3_Export fmi3Status fmi3EnterInitializationMode(fmi3Instance instance,
 
 FMI3_Export fmi3Status fmi3ExitInitializationMode(fmi3Instance instance) {
   fs_instance* s = fs_check(instance, "fmi3ExitInitializationMode", FS_INITIALIZATION, FS_ANY_KIND);
+  char why[256];
+  const char* problem;
   if (!s) return fmi3Error;
+  /* Each parameter is checked against its own range when set; a combination the model cannot
+   * work with (a four-bar that does not close) shows here, before the first step. */
+  problem = fs_outputs_problem(s, why, sizeof why);
+  if (problem) {
+    fs_error(s, "fmi3ExitInitializationMode: %s at t=%g with the values set (parameters outside "
+             "the range they are valid in together?)", problem, s->dyn.time);
+    return fmi3Error;
+  }
   if (casadi_fmi3ExitInitializationMode(s->memory) != fmi3OK) return fmi3Error;
   s->dyn.mode = (s->kind == FS_CO_SIMULATION && !s->event_mode_used) ? FS_STEP : FS_EVENT;
   return fmi3OK;

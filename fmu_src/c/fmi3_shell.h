@@ -102,6 +102,8 @@ void fs_discard(const fs_instance* s, const char* fmt, ...) __attribute__((forma
 /* The instance if it exists, is of an allowed kind and in an allowed mode; else logs and NULL. */
 fs_instance* fs_check(fmi3Instance instance, const char* function, unsigned modes, unsigned kinds);
 const char* fs_mode_name(fs_mode mode);
+/* Evaluates the model at the current point; why an output is not finite there, or NULL. */
+const char* fs_outputs_problem(fs_instance* s, char* why, size_t size);
 /* Index of the first non-finite value, or -1 when all n are finite. */
 long fs_first_non_finite(const double* values, size_t n);
 

@@ -151,3 +151,24 @@ def test_model_exchange_never_returns_nan_with_ok(sqrt_fmu, drain_fmu, open_fmu)
     with pytest.raises(FMICallException) as failure:
         me.getFloat64([vr["root"]])
     assert failure.value.status == DISCARD and "'root' is not finite" in log[-1][1]
+
+
+def test_robot_parameters_that_break_the_four_bar_are_refused_before_the_first_step(fmu_cache, open_fmu):
+    """Each robot parameter is in range, but a 0.5 m crank cannot close the four-bar: the root
+    angle is NaN. The FMU says so when initialization ends instead of stepping on with NaN."""
+    from fmu_src.robot import robot_model
+
+    path = build_fmu(robot_model())
+    vr = refs(path)
+    log: list[tuple[int, str]] = []
+    slave = open_fmu(path, "CS", log)
+    slave.setFloat64([vr["crank_m"]], [0.5])
+    slave.enterInitializationMode(startTime=0.0)
+    with pytest.raises(FMICallException):
+        slave.exitInitializationMode()
+    assert log[-1][0] == ERROR and re.match(
+        r"fmi3ExitInitializationMode: output '\w+' is not finite \(-?nan\) at t=0 with the values set", log[-1][1])
+    slave.setFloat64([vr["crank_m"]], [0.025])  # still in Initialization: the importer can fix it
+    slave.exitInitializationMode()
+    slave.doStep(0.0, 0.01)
+    assert all(math.isfinite(v) for v in slave.getFloat64([vr["root_angle_rad"], vr["body_position_m"]]))
