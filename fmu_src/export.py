@@ -15,7 +15,6 @@ from __future__ import annotations
 import fcntl
 import hashlib
 import json
-import math
 import os
 import re
 import shutil
@@ -31,18 +30,19 @@ import fmpy
 
 from .errors import BuildError
 from .model import Model
+from .shell_tables import variable_tables
 
 SHELL_DIR = Path(__file__).parent / "c"
 SHELL_HEADER = "fmi3_shell.h"
 SHELL_SOURCES = (
-    "fmi3_shell.c", "fmi3_model_exchange.c", "fmi3_cosim.c", "fmi3_state.c", "fmi3_unsupported.c"
+    "fmi3_shell.c", "fmi3_variables.c", "fmi3_model_exchange.c", "fmi3_cosim.c", "fmi3_state.c",
+    "fmi3_unsupported.c",
 )
 # An FMI 2.0 FMU is the same shell behind this adapter; the shell's fmi3 functions stay hidden.
 FMI2_ADAPTER = "fmi2_adapter.c"
 FMI2_PLATFORM = "linux64"  # FMI 2.0's name for the binaries' folder
 FMI_VERSIONS = (2, 3)
 PLATFORM = "x86_64-linux"
-TIME_VR = 4294967295  # CasADi's value reference of `time`
 FMI_HEADERS = Path(fmpy.__file__).parent / "c-code"
 # Hidden visibility leaves only the shell's fmi3* functions exported: CasADi's globals
 # (`start`, `evaluate`, the model functions) would otherwise be visible to the whole process.
@@ -146,9 +146,8 @@ def _cache_key(model: Model, shell: dict[str, bytes], fmi_version: int) -> str:
     digest = hashlib.sha256(f"{ca.__version__} {PLATFORM} {CFLAGS} FMI{fmi_version}".encode())
     for name, source in sorted(shell.items()):
         digest.update(name.encode() + source)
-    digest.update(Path(__file__).read_bytes())
-    if fmi_version == 2:
-        digest.update((Path(__file__).parent / "fmi2_description.py").read_bytes())
+    for module in ("export.py", "shell_tables.py", *(("fmi2_description.py",) if fmi_version == 2 else ())):
+        digest.update((Path(__file__).parent / module).read_bytes())
     # The fingerprint covers equations and variable metadata but not the model's own text.
     digest.update(f"{model.name}\0{model.description}".encode())
     version = "" if fmi_version == 3 else f"fmi{fmi_version}-"
@@ -180,7 +179,7 @@ def _build(model: Model, shell: dict[str, bytes], work: Path, fmi_version: int) 
     wrap = work / f"{identifier}_wrap.c"
     token = ET.parse(xml_path).getroot().get("instantiationToken", "")
     prefix = _WRAP_PREFIX + f'#define FS_INSTANTIATION_TOKEN "{token}"\n'
-    tables = _variable_tables(model, ET.parse(xml_path).getroot())
+    tables = variable_tables(model, ET.parse(xml_path).getroot())
     wrap.write_text(prefix + wrap.read_text() + tables + _WRAP_HOOKS)
     model_flags = _prepare_model_source(work / f"{identifier}.c", identifier)
     for name, source in shell.items():
@@ -203,41 +202,6 @@ def _build(model: Model, shell: dict[str, bytes], work: Path, fmi_version: int) 
         for local, archived in sorted(files.items(), key=lambda item: item[1]):
             archive.write(work / local, os.path.normpath(archived))
     return fmu
-
-
-def _c_string(text: str) -> str:
-    """A C string literal of `text` (UTF-8, every non-ASCII or special byte escaped)."""
-    plain = set(range(32, 127)) - set(b'"\\?')
-    return '"' + "".join(chr(b) if b in plain else f"\\{b:03o}" for b in text.encode()) + '"'
-
-
-def _c_double(value: float) -> str:
-    return repr(float(value)) if math.isfinite(value) else ("HUGE_VAL" if value > 0 else "-HUGE_VAL")
-
-
-def _variable_tables(model: Model, root: ET.Element) -> str:
-    """C tables the shell checks against: every variable's name by value reference, and the
-    valid range (or choices) of every parameter, as declared in the Model."""
-    by_vr = {int(v.get("valueReference")): v.get("name") for v in root.iter("Float64")}
-    n_var = max((vr for vr in by_vr if vr != TIME_VR), default=0) + 1
-    names = ",\n  ".join(_c_string(by_vr.get(vr, "?")) for vr in range(n_var))
-    vr_of = {name: vr for vr, name in by_vr.items()}
-    limits = ["{0.0, 0.0, 0, 0, NULL, \"\"}"] * n_var
-    choice_arrays = []
-    for p in model.parameters:
-        choices = "NULL"
-        if p.choices:
-            choices = f"fs_choices_{len(choice_arrays)}"
-            choice_arrays.append(f"static const double {choices}[] = {{{', '.join(map(_c_double, p.choices))}}};")
-        limits[vr_of[p.name]] = (f"{{{_c_double(p.minimum)}, {_c_double(p.maximum)}, {int(p.exclusive_minimum)}, "
-                                 f"{len(p.choices or ())}, {choices}, {_c_string(p.unit)}}}")
-    separator = ",\n  "
-    return ("\n/* Appended by featherstar (fmu_src/export.py): names and parameter ranges. */\n"
-            "#include <math.h>\n#include \"fmi3_shell.h\"\n"
-            f"#if N_VAR != {n_var}\n#error variable tables do not match CasADi's N_VAR\n#endif\n"
-            + "\n".join(choice_arrays) + "\n"
-            f"static const char* const fs_var_name[N_VAR] = {{\n  {names}}};\n"
-            f"static const fs_limit fs_limit_by_vr[N_VAR] = {{\n  {separator.join(limits)}}};\n")
 
 
 def _export_sources(model: Model, identifier: str, work: Path) -> dict[str, str]:

@@ -104,6 +104,12 @@ fs_instance* fs_check(fmi3Instance instance, const char* function, unsigned mode
 const char* fs_mode_name(fs_mode mode);
 /* Evaluates the model at the current point; why an output is not finite there, or NULL. */
 const char* fs_outputs_problem(fs_instance* s, char* why, size_t size);
+/* Number of values the references address, or (size_t)-1 after logging the first bad one. */
+size_t fs_count_values(const fs_instance* s, const char* function, const fmi3ValueReference vr[],
+                       size_t n_vr, int allow_time);
+/* Whether an array argument holds `expected` values; logs why not. */
+int fs_check_array_args(const fs_instance* s, const char* function, const void* vr, size_t n_vr,
+                        const void* values, size_t n_values, size_t expected);
 /* Index of the first non-finite value, or -1 when all n are finite. */
 long fs_first_non_finite(const double* values, size_t n);
 
