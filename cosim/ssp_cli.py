@@ -5,6 +5,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 
@@ -38,7 +39,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
             overrides[key.strip()] = value.strip()
         if args.out.suffix.lower() != ".ssp":
             parser.error(f"--out {args.out}: an SSP package's name ends in .ssp")
-        print(export_ssp(args.scene, args.out, overrides, fmi_version=args.fmi))
+        def progress(what: str) -> None:
+            print(f"featherstar export-ssp: {what} (built once, then cached)", file=sys.stderr, flush=True)
+
+        print(export_ssp(args.scene, args.out, overrides, fmi_version=args.fmi, progress=progress))
         return 0
 
     parser.set_defaults(func=run)

@@ -23,7 +23,7 @@ import tempfile
 import xml.etree.ElementTree as ET
 import zipfile
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Callable, Mapping
 
 from .blocks import ResolvedBlock
 from .errors import SceneError
@@ -44,8 +44,9 @@ def _number(value: float) -> str:
 
 
 def export_ssp(scene: str | Path | Scene, out: Path, overrides: Mapping[str, Any] | None = None, *,
-               fmi_version: int = 3) -> Path:
+               fmi_version: int = 3, progress: Callable[[str], None] | None = None) -> Path:
     """Write `scene` (with "block.key" overrides) as the SSP package `out`; returns its path.
+    `progress` hears about each FMU as it is built or copied (a build can take a minute).
 
     Raises SceneError for a scene that does not validate, BuildError when an FMU cannot be built.
     """
@@ -59,7 +60,11 @@ def export_ssp(scene: str | Path | Scene, out: Path, overrides: Mapping[str, Any
     out.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix="featherstar-ssp-") as tmp:
         work = Path(tmp)
-        sources = {name: _fmu_file(plan.blocks[name], work, fmi_version) for name in fmu_blocks}
+        sources = {}
+        for name in fmu_blocks:
+            if progress is not None:
+                progress(f"FMU of block '{name}'")
+            sources[name] = _fmu_file(plan.blocks[name], work, fmi_version)
         ssd = _system_structure(scene, plan.blocks, sources)
         (work / SSD_NAME).write_text(ssd, encoding="utf-8")
         partial = out.with_name(f".{out.name}.part")
