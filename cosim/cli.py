@@ -15,7 +15,7 @@ from typing import Iterator, Sequence
 
 from fmu_src.errors import FeatherstarError
 
-PLUGINS = ("fmu_src.cli", "optimizer.cli", "hil.cli", "cosim.dashboard")
+PLUGINS = ("fmu_src.cli", "cosim.ssp_cli", "optimizer.cli", "hil.cli", "cosim.dashboard")
 
 
 def _parse_set(items: Sequence[str]) -> dict[str, str]:
@@ -147,8 +147,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="featherstar", description="Co-simulation toolkit for soft robotic swimmers")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     run = sub.add_parser("run", help="run a scene and summarise it (TR, mean thrust, speed)",
-                         description="Run a shipped scene (see `featherstar scenes`) or a scene TOML file.")
-    run.add_argument("scene", help="scene name or path to a .toml file")
+                         description="Run a shipped scene (see `featherstar scenes`), a scene TOML file or an "
+                         "SSP 1.0 package (see `featherstar export-ssp`).")
+    run.add_argument("scene", help="scene name, path to a .toml file, or an SSP 1.0 package (.ssp)")
     run.add_argument("--set", action="append", default=[], metavar="BLOCK.PARAM=VALUE",
                      help="override a block parameter or option, or master.*/metrics.* (repeatable), e.g. "
                           "feather.morphology=spanwise controller.period_s=3 master.coupling=jacobi")

@@ -482,9 +482,14 @@ def list_scenes() -> list[tuple[str, str]]:
 
 
 def load_scene(name_or_path: str | Path | Scene) -> Scene:
-    """A shipped scene by name ("testbed", "robot", "kinematic") or a TOML file by path."""
+    """A shipped scene by name ("testbed", "robot", "kinematic"), a TOML file by path, or an
+    SSP 1.0 package (.ssp, see cosim.ssp)."""
     if isinstance(name_or_path, Scene):
         return name_or_path
+    from .ssp import is_ssp, load_ssp  # cosim.ssp builds scenes with this module
+
+    if is_ssp(name_or_path):
+        return load_ssp(name_or_path)
     shipped = _shipped()
     text = str(name_or_path)
     if text in shipped:

@@ -2,6 +2,7 @@
 algebraic loops solved by Newton iteration on their inputs (shared by both couplings)."""
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING, Callable, Sequence
 
 import numpy as np
@@ -194,8 +195,15 @@ def setter_op(ctx: "RunContext", u: Unit, idx: list[int], src_of: dict) -> Calla
     for i in idx:
         sb, k = src_of[(u.name, i)]
         gathers.append((i, ctx.units[sb].outbuf, k))
-    push = u.input_setter(idx)
+    raw_push = u.input_setter(idx)
     inbuf = u.inbuf
+
+    def push() -> None:
+        try:
+            raw_push()
+        except StepError as exc:
+            raise _non_finite_origin(ctx, u, idx, src_of) or exc from None
+
     if len(gathers) == 1:
         (i0, src0, k0), = gathers
 
@@ -209,6 +217,20 @@ def setter_op(ctx: "RunContext", u: Unit, idx: list[int], src_of: dict) -> Calla
             inbuf[i] = src[k]
         push()
     return op
+
+
+def _non_finite_origin(ctx: "RunContext", u: Unit, idx: list[int], src_of: dict) -> StepError | None:
+    """When a block refuses a NaN/inf input (featherstar's own FMUs do), the block that produced
+    it is where the run failed, not the one that would not compute with it."""
+    for i in idx:
+        value = u.inbuf[i]
+        if not math.isfinite(value):
+            sb, k = src_of[(u.name, i)]
+            src = ctx.units[sb]
+            return StepError(sb, ctx.t, f"output {src.output_names[k]} = {value}",
+                             cause=f"the block produced NaN/inf ({u.name}.{u.input_names[i]} refused it): its "
+                             "model blew up, divided by zero, or got invalid parameters or inputs")
+    return None
 
 
 def loop_op(ctx: "RunContext", comp: list, src_of: dict, edges: dict) -> LoopSolver:
