@@ -31,6 +31,7 @@ from fmu_src.errors import FeatherstarError, ModelError
 from .block import Block, MemorylessBlock, Port, RollbackBlock, can_iterate
 from .controller import STROKE_KEYS, StrokeController, resolve_stroke
 from .errors import SceneError
+from .fmi_types import parameter_value
 from .scene import BlockSpec, FrozenMap, PortRef, parse_value
 
 
@@ -47,7 +48,7 @@ class ResolvedBlock:
     identity: Hashable | None = None  # equal identities + equal input sources => interchangeable
     period_s: float | None = None
     model: Any = None  # fmu_src Model for model-backed blocks
-    parameters: dict[str, float] = field(default_factory=dict)
+    parameters: dict[str, Any] = field(default_factory=dict)  # models: floats; FMU files: each variable's type
     fmu_path: Path | None = None
     fmu_info: Any = None
     obj: Any = None  # python block object (stroke, gain, python kinds)
@@ -413,15 +414,19 @@ class FmuKind(BlockKind):
         params = {**dict(spec.settings.get("parameters", {})), **spec.overrides}
         if "options" in spec.settings:
             raise SceneError(f"{_where(spec)}: build options apply to models, not to an FMU file")
+        typed = {}
         for key, value in params.items():
             if key not in info.parameters:
                 raise SceneError(f"{_where(spec)}: FMU '{path.name}' has no tunable/fixed parameter '{key}'; "
                                  f"it has: {', '.join(sorted(info.parameters)) or 'none'}")
-            if isinstance(value, (str, bool)):
-                raise SceneError(f"{_where(spec)}: parameter {key} = {value!r} is not a number")
+            try:
+                typed[key] = parameter_value(info.parameter_types[key], value,
+                                             f"{_where(spec)}: parameter {key} ({info.parameter_types[key]})")
+            except ValueError as exc:
+                raise SceneError(str(exc)) from None
         return ResolvedBlock(spec, dict(info.inputs), dict(info.outputs), iterable=True,
                              continuous=info.has_me, identity=("fmu", str(path.resolve()), FrozenMap(params)),
-                             parameters={k: float(v) for k, v in params.items()}, fmu_path=path, fmu_info=info)
+                             parameters=typed, fmu_path=path, fmu_info=info)
 
 
 KINDS: dict[str, BlockKind] = {k.name: k for k in (StrokeKind(), RecorderKind(), ConstantKind(), GainKind(), PythonKind(), FmuKind())}

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import ctypes
 import shutil
+from collections import deque
 import tempfile
 from ctypes import CFUNCTYPE, c_bool, c_double, c_int, c_size_t, c_uint, c_void_p
 from dataclasses import dataclass, field
@@ -28,6 +29,8 @@ from fmpy.model_description import read_model_description
 
 from .block import Port
 from .errors import SceneError, StepError
+from .fmi_types import port_type
+from .fmu_values import PortVar, TypedAccess, ValueError_, from_carrier, to_carrier
 from .units import Unit
 
 STATUS = ["ok", "warning", "discard", "error", "fatal", "pending"]
@@ -40,7 +43,7 @@ class FmuInfo:
     model_name: str
     inputs: dict[str, Port]
     outputs: dict[str, Port]
-    parameters: dict[str, int]  # name -> value reference (Float64/Real tunable or fixed)
+    parameters: dict[str, int]  # name -> value reference (scalar tunable or fixed, any type)
     vr: dict[str, int]
     has_me: bool
     has_cs: bool
@@ -50,6 +53,9 @@ class FmuInfo:
     needs_completed_integrator_step: bool
     state_names: list[str] = field(default_factory=list)
     model_description: Any = None
+    port_vars: dict[str, PortVar] = field(default_factory=dict)  # port -> variable (type, array element)
+    parameter_types: dict[str, str] = field(default_factory=dict)
+    arrays: dict[str, list[str]] = field(default_factory=dict)  # FMI 3 array -> its element ports
 
 
 def _unit_of(var: Any) -> str:
@@ -61,6 +67,13 @@ def _unit_of(var: Any) -> str:
     return ""
 
 
+def _element_names(name: str, shape: tuple[int, ...]) -> list[str]:
+    """Port names of an array's elements, row-major: v[0], v[1], ... or m[0,1] for 2-D."""
+    import itertools
+
+    return [f"{name}[{','.join(map(str, index))}]" for index in itertools.product(*(range(n) for n in shape))]
+
+
 def read_fmu_info(path: Path, block: str = "") -> FmuInfo:
     where = f"block '{block}': FMU '{path}'" if block else f"FMU '{path}'"
     try:
@@ -70,40 +83,48 @@ def read_fmu_info(path: Path, block: str = "") -> FmuInfo:
     version = str(md.fmiVersion)
     if not (version.startswith("2.") or version.startswith("3.")):
         raise SceneError(f"{where}: FMI {version} is not supported (FMI 2.0 and 3.0 are)")
-    real_types = ("Real", "Float64")
-    inputs, outputs, params, vr = {}, {}, {}, {}
-    problems = []
-    by_var = {}
+    fmi3 = version.startswith("3.")
+    inputs, outputs, params, param_types, vr, port_vars, arrays = {}, {}, {}, {}, {}, {}, {}
     for var in md.modelVariables:
         if var.causality not in ("input", "output", "parameter"):
             continue
-        if var.type not in real_types or (getattr(var, "dimensions", None) or []):
-            if var.causality in ("input", "output"):
-                problems.append(f"{where}: {var.causality} '{var.name}' is {var.type}"
-                                f"{' (array)' if getattr(var, 'dimensions', None) else ''}; only scalar "
-                                "Float64/Real ports are supported")
+        ptype = port_type(var.type, fmi3)
+        if ptype is None:  # a Clock: not a port; nobody can connect it, so it blocks nothing
             continue
-        vr[var.name] = var.valueReference
-        by_var[id(var)] = var.name
+        shape = tuple(getattr(var, "shape", None) or ())
+        discrete = var.variability in ("discrete", "fixed", "tunable", "constant")
         if var.causality == "parameter":
-            if var.variability in ("fixed", "tunable"):
+            if var.variability in ("fixed", "tunable") and not shape:
                 params[var.name] = var.valueReference
-        elif var.causality == "input":
-            inputs[var.name] = Port(var.name, _unit_of(var), var.description or "")
-    input_names = tuple(inputs)
-    listed = {}
+                param_types[var.name] = ptype
+                vr[var.name] = var.valueReference
+            continue
+        names = _element_names(var.name, shape) if shape else [var.name]
+        if shape:
+            arrays[var.name] = names
+        size = len(names)
+        for k, name in enumerate(names):
+            vr[name] = var.valueReference
+            port_vars[name] = PortVar(var.valueReference, ptype, k, size, discrete)
+            port = Port(name, _unit_of(var), var.description or "", (), ptype, discrete)
+            (inputs if var.causality == "input" else outputs)[name] = port
+
+    def ports_of(name: str) -> list[str]:
+        return arrays.get(name, [name] if name in inputs else [])
+
+    all_inputs = tuple(inputs)
+    listed: dict[str, tuple[str, ...]] = {}
     for unknown in md.outputs or []:
         name = unknown.variable.name
         if unknown.dependencies is None:
-            listed[name] = input_names
+            deps = all_inputs
         else:
-            listed[name] = tuple(d.name for d in unknown.dependencies if d.name in inputs)
-    for var in md.modelVariables:
-        if var.causality == "output" and var.name in vr:
-            outputs[var.name] = Port(var.name, _unit_of(var), var.description or "",
-                                     listed.get(var.name, input_names))
-    if problems:
-        raise SceneError(problems)
+            deps = tuple(p for d in unknown.dependencies for p in ports_of(d.name))
+        for port in arrays.get(name, [name]):
+            listed[port] = deps
+    for name, port in outputs.items():
+        outputs[name] = Port(port.name, port.unit, port.description, listed.get(name, all_inputs), port.type,
+                             port.discrete)
     me, cs = md.modelExchange, md.coSimulation
     iface = cs or me
     n_states = len(md.derivatives or [])
@@ -118,7 +139,8 @@ def read_fmu_info(path: Path, block: str = "") -> FmuInfo:
         n_states=n_states, n_event_indicators=int(md.numberOfEventIndicators or 0),
         needs_completed_integrator_step=bool(me is not None and getattr(me, "needsCompletedIntegratorStep", False)
                                              and not getattr(me, "completedIntegratorStepNotNeeded", False)),
-        state_names=state_names, model_description=md,
+        state_names=state_names, model_description=md, port_vars=port_vars, parameter_types=param_types,
+        arrays=arrays,
     )
 
 
@@ -133,7 +155,7 @@ def _proto(dll: Any, name: str, *argtypes: Any) -> Callable[..., int]:
 class FmuUnit(Unit):
     """One FMU instance, Model Exchange (`mode="me"`) or Co-Simulation (`mode="cs"`)."""
 
-    def __init__(self, name: str, info: FmuInfo, parameters: dict[str, float], mode: str,
+    def __init__(self, name: str, info: FmuInfo, parameters: dict[str, Any], mode: str,
                  unzip_dir: str | None = None) -> None:
         super().__init__(name, list(info.inputs), list(info.outputs))
         self.info = info
@@ -152,13 +174,33 @@ class FmuUnit(Unit):
         self._terminated = False
         self._vr_in = (c_uint * max(len(self.input_names), 1))(*[info.vr[n] for n in self.input_names])
         self._vr_out = (c_uint * max(len(self.output_names), 1))(*[info.vr[n] for n in self.output_names])
+        self.port_in = [info.port_vars[n] for n in self.input_names]
+        self.port_out = [info.port_vars[n] for n in self.output_names]
+        # Model Exchange: discrete inputs may be set in event mode only; the master's setters leave
+        # them in inbuf and the event update pushes them (cosim.strong enters event mode for that)
+        self._discrete_in = [i for i, pv in enumerate(self.port_in) if pv.discrete] if mode == "me" else []
+        self.has_discrete_inputs = bool(self._discrete_in)
+        self._pushed: dict[int, float] = {}
+        self._array_cache: dict[int, list[Any]] = {}
+        self.log_lines: deque[tuple[int, str]] = deque(maxlen=8)
 
     # ---------------------------------------------------------------------------------------
     def _fail(self, function: str, t: float, status: int | str, cause: str = "") -> StepError:
         label = STATUS[status] if isinstance(status, int) and 0 <= status < len(STATUS) else status
-        return StepError(self.name, t, f"{function} returned status {label}", function=function,
+        said = self.fmu_said()
+        message = f"{function} returned status {label}" + (f"; the FMU logged: {said}" if said else "")
+        return StepError(self.name, t, message, function=function,
                          cause=cause or "the FMU rejected the call (invalid inputs or parameters, or the "
                          "model left its valid range)")
+
+    def fmu_said(self) -> str:
+        """The FMU's own recent log lines (warnings and errors first), for error messages."""
+        lines = [text for status, text in self.log_lines if status >= 1] or [text for _, text in self.log_lines][-1:]
+        self.log_lines.clear()
+        return " | ".join(dict.fromkeys(lines))
+
+    def _log(self, status: int, message: bytes | None) -> None:
+        self.log_lines.append((int(status), (message or b"").decode("utf-8", "replace").strip()))
 
     def _call(self, function: str, fn: Callable[[], Any]) -> Any:
         try:
@@ -190,14 +232,19 @@ class FmuUnit(Unit):
             from fmpy.fmi2 import FMU2Model, FMU2Slave
 
             self.fmu = (FMU2Slave if self.mode == "cs" else FMU2Model)(**kw)
-            self._call("instantiate", lambda: self.fmu.instantiate())
+            self._callbacks = self._fmi2_callbacks()
+            self._call("instantiate", lambda: self.fmu.instantiate(callbacks=self._callbacks))
         self._bind()
         fmu = self.fmu
-        if self.parameters:
-            vrs = [info.parameters[k] for k in self.parameters]
-            vals = [float(v) for v in self.parameters.values()]
-            setter = fmu.setFloat64 if self.fmi3 else fmu.setReal
-            self._call("set parameters", lambda: setter(vrs, vals))
+        by_type: dict[str, tuple[list[int], list[Any]]] = {}
+        for key, value in self.parameters.items():
+            vrs, vals = by_type.setdefault(info.parameter_types.get(key, "Float64"), ([], []))
+            vrs.append(info.parameters[key])
+            vals.append(value)
+        for type_, (vrs, vals) in by_type.items():
+            status = self._access.set(type_, vrs, vals)
+            if status > 1:
+                raise self._fail(f"{self._access.name('Set', type_)} (parameters)", t0, status)
         if self.fmi3:
             self._call("fmi3EnterInitializationMode",
                        lambda: fmu.enterInitializationMode(tolerance=rtol, startTime=t0, stopTime=t_end))
@@ -210,16 +257,33 @@ class FmuUnit(Unit):
             self._event_iteration()
             self._call("enterContinuousTimeMode", fmu.enterContinuousTimeMode)
 
-    def _log3(self, env, status, category, message) -> None:  # FMU log: keep errors for messages
-        if status >= 2:
-            self.last_message = (message or b"").decode("utf-8", "replace")
+    def _log3(self, env, status, category, message) -> None:
+        self._log(status, message)
 
-    last_message = ""
+    def _fmi2_callbacks(self) -> Any:
+        """fmi2CallbackFunctions whose logger keeps the FMU's lines (fmpy's native proxy formats
+        the variadic message first)."""
+        from fmpy import calloc, free
+        from fmpy.fmi2 import (fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
+                               fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
+
+        callbacks = fmi2CallbackFunctions()
+        callbacks.logger = fmi2CallbackLoggerTYPE(lambda env, name, status, category, message: self._log(status, message))
+        callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+        callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+        try:
+            from fmpy.logging import addLoggerProxy
+
+            addLoggerProxy(ctypes.byref(callbacks))
+        except Exception:  # no native proxy for this platform: messages arrive unformatted
+            pass
+        return callbacks
 
     def _bind(self) -> None:
         dll = self.fmu.dll
         inst = self.fmu.component
         self._inst = inst
+        self._access = TypedAccess(dll, inst, self.fmi3)
         pre = "fmi3" if self.fmi3 else "fmi2"
         if self.fmi3:
             self._setf = _proto(dll, "fmi3SetFloat64", c_void_p, _P, c_size_t, _P, c_size_t)
@@ -247,6 +311,20 @@ class FmuUnit(Unit):
 
     # --- instant evaluation --------------------------------------------------------------
     def input_setter(self, idx: Sequence[int]) -> Callable[[], None]:
+        held = set(self._discrete_in)
+        return self._setter([i for i in idx if i not in held])
+
+    def _setter(self, idx: Sequence[int]) -> Callable[[], None]:
+        fast = [i for i in idx if self.port_in[i].fast]
+        typed = [i for i in idx if not self.port_in[i].fast]
+        return _chain([self._fast_setter(fast) if fast else None, self._typed_setter(typed) if typed else None])
+
+    def output_getter(self, idx: Sequence[int]) -> Callable[[], None]:
+        fast = [i for i in idx if self.port_out[i].fast]
+        typed = [i for i in idx if not self.port_out[i].fast]
+        return _chain([self._fast_getter(fast) if fast else None, self._typed_getter(typed) if typed else None])
+
+    def _fast_setter(self, idx: Sequence[int]) -> Callable[[], None]:
         idx = list(idx)
         n = len(idx)
         if n == 0:
@@ -276,7 +354,7 @@ class FmuUnit(Unit):
         push._keep = vr  # keep the arrays alive with the closure
         return push
 
-    def output_getter(self, idx: Sequence[int]) -> Callable[[], None]:
+    def _fast_getter(self, idx: Sequence[int]) -> Callable[[], None]:
         idx = list(idx)
         n = len(idx)
         if n == 0:
@@ -305,6 +383,79 @@ class FmuUnit(Unit):
                     outbuf[i] = vals[j]
         get._keep = vr
         return get
+
+    def _groups(self, ports: list[PortVar], idx: Sequence[int]) -> tuple[dict[str, list[int]], dict[int, list[int]]]:
+        """Port indices by call: scalars grouped by type, array elements by their variable."""
+        scalars: dict[str, list[int]] = {}
+        arrays: dict[int, list[int]] = {}
+        for i in idx:
+            pv = ports[i]
+            (arrays.setdefault(pv.vr, []) if pv.size > 1 else scalars.setdefault(pv.type, [])).append(i)
+        return scalars, arrays
+
+    def _array(self, pv: PortVar) -> list[Any]:
+        """The current values of an input array (its unconnected elements keep theirs)."""
+        values = self._array_cache.get(pv.vr)
+        if values is None:
+            status, values = self._access.get(pv.type, [pv.vr], pv.size)
+            if status > 1:
+                raise self._fail(self._access.name("Get", pv.type), self.t, status)
+            self._array_cache[pv.vr] = values
+        return values
+
+    def _typed_setter(self, idx: Sequence[int]) -> Callable[[], None]:
+        scalars, arrays = self._groups(self.port_in, idx)
+        access, inbuf, ports = self._access, self.inbuf, self.port_in
+        calls = [(t, [ports[i].vr for i in items], items) for t, items in scalars.items()]
+
+        def push() -> None:
+            for type_, vrs, items in calls:
+                status = access.set(type_, vrs, [from_carrier(type_, inbuf[i]) for i in items])
+                if status > 1:
+                    raise self._fail(f"{access.name('Set', type_)} (inputs)", self.t, status)
+            for vr, items in arrays.items():
+                pv = ports[items[0]]
+                values = self._array(pv)
+                for i in items:
+                    values[ports[i].element] = from_carrier(pv.type, inbuf[i])
+                status = access.set(pv.type, [vr], values)
+                if status > 1:
+                    raise self._fail(f"{access.name('Set', pv.type)} (input array)", self.t, status)
+        return push
+
+    def _typed_getter(self, idx: Sequence[int]) -> Callable[[], None]:
+        scalars, arrays = self._groups(self.port_out, idx)
+        access, outbuf, ports, names = self._access, self.outbuf, self.port_out, self.output_names
+        calls = [(t, [ports[i].vr for i in items], items) for t, items in scalars.items()]
+        calls += [(ports[items[0]].type, [vr], items) for vr, items in arrays.items()]
+
+        def get() -> None:
+            for type_, vrs, items in calls:
+                size = ports[items[0]].size
+                status, values = access.get(type_, vrs, len(vrs) * size)
+                if status > 1:
+                    raise self._fail(f"{access.name('Get', type_)} (outputs)", self.t, status)
+                for j, i in enumerate(items):
+                    try:
+                        outbuf[i] = to_carrier(type_, values[ports[i].element if size > 1 else j])
+                    except ValueError_ as exc:
+                        raise StepError(self.name, self.t, f"output {names[i]}: {exc}", function=access.name("Get", type_),
+                                        cause="featherstar carries integers as float64, exact to 2**53") from None
+        return get
+
+    def discrete_inputs_changed(self) -> bool:
+        inbuf, pushed = self.inbuf, self._pushed
+        return any(inbuf[i] != pushed.get(i) and inbuf[i] == inbuf[i] for i in self._discrete_in)
+
+    def _push_discrete(self) -> None:
+        """In event mode: set the discrete inputs the master has put in inbuf since the last event."""
+        if not self._discrete_in:
+            return
+        if not hasattr(self, "_discrete_push"):
+            self._discrete_push = self._setter(self._discrete_in)
+        self._discrete_push()
+        for i in self._discrete_in:
+            self._pushed[i] = self.inbuf[i]
 
     # --- model exchange ------------------------------------------------------------------
     def set_time(self, t: float) -> None:
@@ -361,6 +512,7 @@ class FmuUnit(Unit):
 
     def event_update(self) -> tuple[bool, float | None, bool]:
         self._call("EnterEventMode", self.fmu.enterEventMode)
+        self._push_discrete()
         result = self._event_iteration()
         self._call("EnterContinuousTimeMode", self.fmu.enterContinuousTimeMode)
         return result
@@ -383,8 +535,8 @@ class FmuUnit(Unit):
             status = self._do_step2(self._inst, t, h, 0)
         if status > 1:
             raise self._fail("fmi3DoStep" if self.fmi3 else "fmi2DoStep", t, status,
-                             cause=self.last_message or "the FMU's integrator failed (step too large for a "
-                             "stiff or blowing-up model, or invalid inputs)")
+                             cause="the FMU's integrator failed (step too large for a stiff or blowing-up "
+                             "model, or invalid inputs)")
         self.t = t + h
 
     def get_state(self) -> Any:
@@ -420,6 +572,20 @@ class FmuUnit(Unit):
         if self._own_unzip and self._unzip:
             shutil.rmtree(self._unzip, ignore_errors=True)
             self._unzip = None
+
+
+def _chain(fns: list[Callable[[], None] | None]) -> Callable[[], None]:
+    live = [f for f in fns if f is not None]
+    if not live:
+        return lambda: None
+    if len(live) == 1:
+        return live[0]
+    first, second = live
+
+    def both() -> None:
+        first()
+        second()
+    return both
 
 
 def extract(path: Path) -> str:

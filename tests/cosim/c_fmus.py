@@ -7,7 +7,7 @@ disagree. `build(name, version, folder)` compiles with gcc against fmpy's FMI he
 
 Models
   types   every scalar type the FMI version has, in and out: T_output = T_input + T_parameter
-          (Boolean: xor; String: concatenation parameter + input; Binary: copy); FMI 3.0 adds
+          (Boolean: xor; String and Binary: the parameter followed by the input); FMI 3.0 adds
           an array port Float64_vector_output[3] = 2 * Float64_vector_input[3]
   events  counter (Int32) += 1 at the time events t = k * period; x' = level with `level` a
           discrete Float64 input (settable only in initialization or event mode, as the standard

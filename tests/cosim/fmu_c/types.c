@@ -1,5 +1,5 @@
-/* Every scalar type in and out: T_output = T_input + T_parameter (Boolean: xor, String:
- * parameter + input, Binary: copy of the input); FMI 3.0 also an array port. */
+/* Every scalar type in and out: T_output = T_input + T_parameter (Boolean: xor, String and
+ * Binary: parameter followed by input); FMI 3.0 also an array port. */
 #include "vars.h"
 #define N_STATES 0
 #define CS_SUBSTEP_S 1.0
@@ -20,7 +20,11 @@ static void m_update(Model* m, double t) {
   m->UInt32_output = m->UInt32_input + m->UInt32_parameter;
   m->Int64_output = m->Int64_input + m->Int64_parameter;
   m->UInt64_output = m->UInt64_input + m->UInt64_parameter;
-  m->Binary_output = m->Binary_input;
+  size_t np_ = m->Binary_parameter.n, ni = m->Binary_input.n;
+  if (np_ + ni > sizeof m->Binary_output.d) ni = sizeof m->Binary_output.d - np_;
+  memcpy(m->Binary_output.d, m->Binary_parameter.d, np_);
+  memcpy(m->Binary_output.d + np_, m->Binary_input.d, ni);
+  m->Binary_output.n = np_ + ni;
   for (int i = 0; i < 3; i++) m->Float64_vector_output[i] = 2 * m->Float64_vector_input[i];
 #endif
 }
