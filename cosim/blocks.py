@@ -339,7 +339,7 @@ def model_feedthrough(model: Any) -> dict[str, tuple[str, ...]]:
 
 class FmuKind(BlockKind):
     name = "fmu"
-    KEYS = ("model", "fmu", "options", "parameters")
+    KEYS = ("model", "fmu", "options", "parameters", "interface")
 
     def override(self, spec: BlockSpec, key: str, raw: Any) -> BlockSpec:
         return dataclasses.replace(spec, overrides=spec.overrides.set(key, parse_value(raw)))
@@ -411,7 +411,11 @@ class FmuKind(BlockKind):
             raise SceneError(f"{_where(spec)}: FMU file '{fmu_ref}' does not exist")
         check_fmu_archive(path, _where(spec))
         info = read_fmu_info(path, spec.name)
-        params = {**dict(spec.settings.get("parameters", {})), **spec.overrides}
+        overrides = dict(spec.overrides)
+        interface = overrides.pop("interface", spec.settings.get("interface"))
+        if interface is not None:
+            info = _choose_interface(info, str(interface), _where(spec))
+        params = {**dict(spec.settings.get("parameters", {})), **overrides}
         if "options" in spec.settings:
             raise SceneError(f"{_where(spec)}: build options apply to models, not to an FMU file")
         typed = {}
@@ -425,8 +429,21 @@ class FmuKind(BlockKind):
             except ValueError as exc:
                 raise SceneError(str(exc)) from None
         return ResolvedBlock(spec, dict(info.inputs), dict(info.outputs), iterable=True,
-                             continuous=info.has_me, identity=("fmu", str(path.resolve()), FrozenMap(params)),
+                             continuous=info.has_me, identity=("fmu", str(path.resolve()), interface, FrozenMap(params)),
                              parameters=typed, fmu_path=path, fmu_info=info)
+
+
+def _choose_interface(info: Any, interface: str, where: str) -> Any:
+    """The FMU seen through one interface only (`interface = "me"` or `"cs"`)."""
+    md = info.model_description
+    if interface == "me" and info.has_me:
+        return dataclasses.replace(info, has_cs=False, can_get_set_state=bool(md.modelExchange.canGetAndSetFMUstate))
+    if interface == "cs" and info.has_cs:
+        return dataclasses.replace(info, has_me=False)
+    if interface in ("me", "cs"):
+        raise SceneError(f"{where}: interface = \"{interface}\" but the FMU has no "
+                         f"{'Model Exchange' if interface == 'me' else 'Co-Simulation'} interface")
+    raise SceneError(f"{where}: interface = {interface!r}; use \"me\" (Model Exchange) or \"cs\" (Co-Simulation)")
 
 
 KINDS: dict[str, BlockKind] = {k.name: k for k in (StrokeKind(), RecorderKind(), ConstantKind(), GainKind(), PythonKind(), FmuKind())}
