@@ -403,7 +403,7 @@ class FmuKind(BlockKind):
                              model=model, parameters={k: float(v) for k, v in params.items()}, notes=notes)
 
     def _resolve_file(self, spec: BlockSpec, fmu_ref: str) -> ResolvedBlock:
-        from .fmu_block import read_fmu_info
+        from .fmu_info import read_fmu_info
         from .preflight import check_fmu_archive
 
         path = Path(fmu_ref).expanduser()

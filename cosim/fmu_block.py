@@ -1,16 +1,16 @@
-"""The FMU adapter: every fmpy call of featherstar's master lives here.
-
-`read_fmu_info` parses modelDescription.xml only (no binary) for the scene checks: Float64/Real
-scalar inputs and outputs with units, direct feedthrough from <ModelStructure> (an output whose
-dependencies are not listed depends on every input, as the standard says), tunable and fixed
-parameters, interfaces (ME, CS) and capabilities. FMI 2.0 and 3.0 are supported.
+"""The FMU adapter: every fmpy call of featherstar's master lives here (what is known before
+loading the binary is cosim.fmu_info).
 
 `FmuUnit` instantiates one FMU as Model Exchange ("me": the master integrates its states) or
 Co-Simulation ("cs": the FMU steps itself). The calls made in the master's hot loop (set time,
 states and inputs; get derivatives and outputs; doStep) go through raw ctypes prototypes on
 preallocated arrays — fmpy's own wrappers cost several µs per call — and their status codes are
-checked here. Every failure becomes a StepError naming the block, the FMI function and the time
-(fmpy's FMICallException names neither the instance nor the time).
+checked here; ports of other types go through cosim.fmu_values. Every failure becomes a
+StepError naming the block, the FMI function and the time (fmpy's FMICallException names neither
+the instance nor the time) and quoting the FMU's own log lines.
+
+Model Exchange discrete inputs can be set only in event mode: the setters leave them in inbuf,
+`discrete_inputs_changed` tells the master, and `event_update` sets them in event mode.
 """
 from __future__ import annotations
 
@@ -19,129 +19,19 @@ import shutil
 from collections import deque
 import tempfile
 from ctypes import CFUNCTYPE, c_bool, c_double, c_int, c_size_t, c_uint, c_void_p
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Sequence
 
 import fmpy
 from fmpy.fmi1 import FMICallException
-from fmpy.model_description import read_model_description
 
 from .block import Port
-from .errors import SceneError, StepError
-from .fmi_types import port_type
-from .fmu_values import PortVar, TypedAccess, ValueError_, from_carrier, to_carrier
+from .errors import StepError
+from .fmu_info import FmuInfo, read_fmu_info
+from .fmu_values import TypedAccess, TypedPorts
 from .units import Unit
 
 STATUS = ["ok", "warning", "discard", "error", "fatal", "pending"]
-
-
-@dataclass
-class FmuInfo:
-    path: Path
-    fmi_version: str
-    model_name: str
-    inputs: dict[str, Port]
-    outputs: dict[str, Port]
-    parameters: dict[str, int]  # name -> value reference (scalar tunable or fixed, any type)
-    vr: dict[str, int]
-    has_me: bool
-    has_cs: bool
-    can_get_set_state: bool  # for the interface that will be used (CS if any, else ME)
-    n_states: int
-    n_event_indicators: int
-    needs_completed_integrator_step: bool
-    state_names: list[str] = field(default_factory=list)
-    model_description: Any = None
-    port_vars: dict[str, PortVar] = field(default_factory=dict)  # port -> variable (type, array element)
-    parameter_types: dict[str, str] = field(default_factory=dict)
-    arrays: dict[str, list[str]] = field(default_factory=dict)  # FMI 3 array -> its element ports
-
-
-def _unit_of(var: Any) -> str:
-    if getattr(var, "unit", None):
-        return str(var.unit)
-    dt = getattr(var, "declaredType", None)
-    if dt is not None and getattr(dt, "unit", None):
-        return str(dt.unit)
-    return ""
-
-
-def _element_names(name: str, shape: tuple[int, ...]) -> list[str]:
-    """Port names of an array's elements, row-major: v[0], v[1], ... or m[0,1] for 2-D."""
-    import itertools
-
-    return [f"{name}[{','.join(map(str, index))}]" for index in itertools.product(*(range(n) for n in shape))]
-
-
-def read_fmu_info(path: Path, block: str = "") -> FmuInfo:
-    where = f"block '{block}': FMU '{path}'" if block else f"FMU '{path}'"
-    try:
-        md = read_model_description(str(path), validate=False)
-    except Exception as exc:
-        raise SceneError(f"{where}: cannot read modelDescription.xml ({exc})") from None
-    version = str(md.fmiVersion)
-    if not (version.startswith("2.") or version.startswith("3.")):
-        raise SceneError(f"{where}: FMI {version} is not supported (FMI 2.0 and 3.0 are)")
-    fmi3 = version.startswith("3.")
-    inputs, outputs, params, param_types, vr, port_vars, arrays = {}, {}, {}, {}, {}, {}, {}
-    for var in md.modelVariables:
-        if var.causality not in ("input", "output", "parameter"):
-            continue
-        ptype = port_type(var.type, fmi3)
-        if ptype is None:  # a Clock: not a port; nobody can connect it, so it blocks nothing
-            continue
-        shape = tuple(getattr(var, "shape", None) or ())
-        discrete = var.variability in ("discrete", "fixed", "tunable", "constant")
-        if var.causality == "parameter":
-            if var.variability in ("fixed", "tunable") and not shape:
-                params[var.name] = var.valueReference
-                param_types[var.name] = ptype
-                vr[var.name] = var.valueReference
-            continue
-        names = _element_names(var.name, shape) if shape else [var.name]
-        if shape:
-            arrays[var.name] = names
-        size = len(names)
-        for k, name in enumerate(names):
-            vr[name] = var.valueReference
-            port_vars[name] = PortVar(var.valueReference, ptype, k, size, discrete)
-            port = Port(name, _unit_of(var), var.description or "", (), ptype, discrete)
-            (inputs if var.causality == "input" else outputs)[name] = port
-
-    def ports_of(name: str) -> list[str]:
-        return arrays.get(name, [name] if name in inputs else [])
-
-    all_inputs = tuple(inputs)
-    listed: dict[str, tuple[str, ...]] = {}
-    for unknown in md.outputs or []:
-        name = unknown.variable.name
-        if unknown.dependencies is None:
-            deps = all_inputs
-        else:
-            deps = tuple(p for d in unknown.dependencies for p in ports_of(d.name))
-        for port in arrays.get(name, [name]):
-            listed[port] = deps
-    for name, port in outputs.items():
-        outputs[name] = Port(port.name, port.unit, port.description, listed.get(name, all_inputs), port.type,
-                             port.discrete)
-    me, cs = md.modelExchange, md.coSimulation
-    iface = cs or me
-    n_states = len(md.derivatives or [])
-    state_names = []
-    for d in md.derivatives or []:
-        state = getattr(d.variable, "derivative", None)
-        state_names.append(state.name if state is not None else d.variable.name)
-    return FmuInfo(
-        path=path, fmi_version=version, model_name=md.modelName, inputs=inputs, outputs=outputs,
-        parameters=params, vr=vr, has_me=me is not None, has_cs=cs is not None,
-        can_get_set_state=bool(iface and iface.canGetAndSetFMUstate),
-        n_states=n_states, n_event_indicators=int(md.numberOfEventIndicators or 0),
-        needs_completed_integrator_step=bool(me is not None and getattr(me, "needsCompletedIntegratorStep", False)
-                                             and not getattr(me, "completedIntegratorStepNotNeeded", False)),
-        state_names=state_names, model_description=md, port_vars=port_vars, parameter_types=param_types,
-        arrays=arrays,
-    )
 
 
 _P = c_void_p  # every array argument is passed as a raw address
@@ -181,7 +71,6 @@ class FmuUnit(Unit):
         self._discrete_in = [i for i, pv in enumerate(self.port_in) if pv.discrete] if mode == "me" else []
         self.has_discrete_inputs = bool(self._discrete_in)
         self._pushed: dict[int, float] = {}
-        self._array_cache: dict[int, list[Any]] = {}
         self.log_lines: deque[tuple[int, str]] = deque(maxlen=8)
 
     # ---------------------------------------------------------------------------------------
@@ -284,6 +173,11 @@ class FmuUnit(Unit):
         inst = self.fmu.component
         self._inst = inst
         self._access = TypedAccess(dll, inst, self.fmi3)
+        self._typed = TypedPorts(self._access, self.port_in, self.port_out, self.output_names, self.inbuf,
+                                 self.outbuf, fail=lambda function, status: self._fail(function, self.t, status),
+                                 carry_error=lambda message, function: StepError(
+                                     self.name, self.t, message, function=function,
+                                     cause="featherstar carries integers as float64, exact to 2**53"))
         pre = "fmi3" if self.fmi3 else "fmi2"
         if self.fmi3:
             self._setf = _proto(dll, "fmi3SetFloat64", c_void_p, _P, c_size_t, _P, c_size_t)
@@ -317,12 +211,12 @@ class FmuUnit(Unit):
     def _setter(self, idx: Sequence[int]) -> Callable[[], None]:
         fast = [i for i in idx if self.port_in[i].fast]
         typed = [i for i in idx if not self.port_in[i].fast]
-        return _chain([self._fast_setter(fast) if fast else None, self._typed_setter(typed) if typed else None])
+        return _chain([self._fast_setter(fast) if fast else None, self._typed.setter(typed) if typed else None])
 
     def output_getter(self, idx: Sequence[int]) -> Callable[[], None]:
         fast = [i for i in idx if self.port_out[i].fast]
         typed = [i for i in idx if not self.port_out[i].fast]
-        return _chain([self._fast_getter(fast) if fast else None, self._typed_getter(typed) if typed else None])
+        return _chain([self._fast_getter(fast) if fast else None, self._typed.getter(typed) if typed else None])
 
     def _fast_setter(self, idx: Sequence[int]) -> Callable[[], None]:
         idx = list(idx)
@@ -382,65 +276,6 @@ class FmuUnit(Unit):
                 for j, i in pairs:
                     outbuf[i] = vals[j]
         get._keep = vr
-        return get
-
-    def _groups(self, ports: list[PortVar], idx: Sequence[int]) -> tuple[dict[str, list[int]], dict[int, list[int]]]:
-        """Port indices by call: scalars grouped by type, array elements by their variable."""
-        scalars: dict[str, list[int]] = {}
-        arrays: dict[int, list[int]] = {}
-        for i in idx:
-            pv = ports[i]
-            (arrays.setdefault(pv.vr, []) if pv.size > 1 else scalars.setdefault(pv.type, [])).append(i)
-        return scalars, arrays
-
-    def _array(self, pv: PortVar) -> list[Any]:
-        """The current values of an input array (its unconnected elements keep theirs)."""
-        values = self._array_cache.get(pv.vr)
-        if values is None:
-            status, values = self._access.get(pv.type, [pv.vr], pv.size)
-            if status > 1:
-                raise self._fail(self._access.name("Get", pv.type), self.t, status)
-            self._array_cache[pv.vr] = values
-        return values
-
-    def _typed_setter(self, idx: Sequence[int]) -> Callable[[], None]:
-        scalars, arrays = self._groups(self.port_in, idx)
-        access, inbuf, ports = self._access, self.inbuf, self.port_in
-        calls = [(t, [ports[i].vr for i in items], items) for t, items in scalars.items()]
-
-        def push() -> None:
-            for type_, vrs, items in calls:
-                status = access.set(type_, vrs, [from_carrier(type_, inbuf[i]) for i in items])
-                if status > 1:
-                    raise self._fail(f"{access.name('Set', type_)} (inputs)", self.t, status)
-            for vr, items in arrays.items():
-                pv = ports[items[0]]
-                values = self._array(pv)
-                for i in items:
-                    values[ports[i].element] = from_carrier(pv.type, inbuf[i])
-                status = access.set(pv.type, [vr], values)
-                if status > 1:
-                    raise self._fail(f"{access.name('Set', pv.type)} (input array)", self.t, status)
-        return push
-
-    def _typed_getter(self, idx: Sequence[int]) -> Callable[[], None]:
-        scalars, arrays = self._groups(self.port_out, idx)
-        access, outbuf, ports, names = self._access, self.outbuf, self.port_out, self.output_names
-        calls = [(t, [ports[i].vr for i in items], items) for t, items in scalars.items()]
-        calls += [(ports[items[0]].type, [vr], items) for vr, items in arrays.items()]
-
-        def get() -> None:
-            for type_, vrs, items in calls:
-                size = ports[items[0]].size
-                status, values = access.get(type_, vrs, len(vrs) * size)
-                if status > 1:
-                    raise self._fail(f"{access.name('Get', type_)} (outputs)", self.t, status)
-                for j, i in enumerate(items):
-                    try:
-                        outbuf[i] = to_carrier(type_, values[ports[i].element if size > 1 else j])
-                    except ValueError_ as exc:
-                        raise StepError(self.name, self.t, f"output {names[i]}: {exc}", function=access.name("Get", type_),
-                                        cause="featherstar carries integers as float64, exact to 2**53") from None
         return get
 
     def discrete_inputs_changed(self) -> bool:

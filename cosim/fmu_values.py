@@ -38,8 +38,8 @@ class PortVar:
         return self.type == "Float64" and self.size == 1
 
 
-class ValueError_(Exception):
-    """A value the float64 carrier cannot hold exactly (raised to fmu_block, which names it)."""
+class CarrierError(Exception):
+    """A value the float64 carrier cannot hold exactly."""
 
 
 def to_carrier(type_: str, value: Any) -> float:
@@ -48,7 +48,7 @@ def to_carrier(type_: str, value: Any) -> float:
     if type_ == "Boolean":
         return 1.0 if value else 0.0
     if type_ in INT_RANGES and abs(int(value)) > CARRIER_EXACT:
-        raise ValueError_(f"{type_} value {int(value)} is beyond 2**53 and cannot be passed on exactly")
+        raise CarrierError(f"{type_} value {int(value)} is beyond 2**53 and cannot be passed on exactly")
     return float(value)
 
 
@@ -131,3 +131,70 @@ class TypedAccess:
         if type_ == "String":
             return status, [(v or b"").decode("utf-8", "replace") for v in data]
         return status, list(data)
+
+
+class TypedPorts:
+    """Setters and getters (closures for the master's schedules) of an FMU unit's ports that are
+    not scalar Float64: one call per type for scalars, one per array variable (an array input
+    is set whole: its unconnected elements keep the values read from the FMU)."""
+
+    def __init__(self, access: TypedAccess, inputs: list[PortVar], outputs: list[PortVar], output_names: list[str],
+                 inbuf: Any, outbuf: Any, *, fail: Callable[[str, int], Exception],
+                 carry_error: Callable[[str, str], Exception]) -> None:
+        self.access, self.inputs, self.outputs, self.output_names = access, inputs, outputs, output_names
+        self.inbuf, self.outbuf = inbuf, outbuf
+        self.fail, self.carry_error = fail, carry_error
+        self._arrays: dict[int, list[Any]] = {}
+
+    @staticmethod
+    def _calls(ports: list[PortVar], idx: Any) -> list[tuple[str, list[int], list[int]]]:
+        """(type, value references, port indices) per FMI call."""
+        scalars: dict[str, list[int]] = {}
+        arrays: dict[int, list[int]] = {}
+        for i in idx:
+            pv = ports[i]
+            (arrays.setdefault(pv.vr, []) if pv.size > 1 else scalars.setdefault(pv.type, [])).append(i)
+        return ([(t, [ports[i].vr for i in items], items) for t, items in scalars.items()] +
+                [(ports[items[0]].type, [vr], items) for vr, items in arrays.items()])
+
+    def _array(self, pv: PortVar) -> list[Any]:
+        values = self._arrays.get(pv.vr)
+        if values is None:
+            status, values = self.access.get(pv.type, [pv.vr], pv.size)
+            if status > 1:
+                raise self.fail(self.access.name("Get", pv.type), status)
+            self._arrays[pv.vr] = values
+        return values
+
+    def setter(self, idx: Any) -> Callable[[], None]:
+        calls, access, inbuf, ports = self._calls(self.inputs, idx), self.access, self.inbuf, self.inputs
+
+        def push() -> None:
+            for type_, vrs, items in calls:
+                if ports[items[0]].size > 1:
+                    values = self._array(ports[items[0]])
+                    for i in items:
+                        values[ports[i].element] = from_carrier(type_, inbuf[i])
+                else:
+                    values = [from_carrier(type_, inbuf[i]) for i in items]
+                status = access.set(type_, vrs, values)
+                if status > 1:
+                    raise self.fail(f"{access.name('Set', type_)} (inputs)", status)
+        return push
+
+    def getter(self, idx: Any) -> Callable[[], None]:
+        calls, access, outbuf, ports = self._calls(self.outputs, idx), self.access, self.outbuf, self.outputs
+
+        def get() -> None:
+            for type_, vrs, items in calls:
+                size = ports[items[0]].size
+                status, values = access.get(type_, vrs, len(vrs) * size)
+                if status > 1:
+                    raise self.fail(f"{access.name('Get', type_)} (outputs)", status)
+                for j, i in enumerate(items):
+                    try:
+                        outbuf[i] = to_carrier(type_, values[ports[i].element if size > 1 else j])
+                    except CarrierError as exc:
+                        raise self.carry_error(f"output {self.output_names[i]}: {exc}",
+                                               access.name("Get", type_)) from None
+        return get

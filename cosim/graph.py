@@ -16,15 +16,15 @@ It then decides what the run needs:
 """
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass, field
 from typing import Iterable, Sequence
 
 from .blocks import ResolvedBlock, is_rollback_capable, resolve
 from .errors import SceneError
 from .fmi_types import conversion_problem
+from .fmu_ports import expand_array_connections, expand_array_refs, hold_unconnected_inputs, keep_used_outputs
 from .guards import step_problems
-from .scene import Connection, FrozenMap, PortRef, Scene
+from .scene import FrozenMap, PortRef, Scene
 
 #: A model parameter that the scene's stroke controller sets wherever the scene leaves it unset:
 #: the feather's oscillatory drag takes each point's Keulegan–Carpenter number from the stroke
@@ -130,7 +130,7 @@ def plan(scene: Scene, outputs: Sequence[str] | None = None) -> Plan:
         return True
 
     source_of: dict[PortRef, PortRef] = {}
-    for conn in _expand_array_connections(scene.connections, resolved, problems):
+    for conn in expand_array_connections(scene.connections, resolved, problems):
         ok = check_output(conn.src, f"connection '{conn}'")
         dst = conn.dst
         if dst.block not in names:
@@ -161,7 +161,7 @@ def plan(scene: Scene, outputs: Sequence[str] | None = None) -> Plan:
         dangling = [port for port in rb.inputs if PortRef(name, port) not in source_of]
         if dangling and rb.fmu_info is not None and rb.model is None:
             held_notes.append(f"{name}: input(s) {', '.join(dangling)} not connected: held at the FMU's start values")
-            _drop_inputs(rb, set(dangling))
+            hold_unconnected_inputs(rb, set(dangling))
             continue
         for port in dangling:
             problems.append(f"input {PortRef(name, port)} is not connected (dangling): connect an output to it "
@@ -178,7 +178,7 @@ def plan(scene: Scene, outputs: Sequence[str] | None = None) -> Plan:
     else:
         for rb in resolved.values():
             requested.extend(rb.signals)
-    requested = _expand_array_refs(requested, resolved)
+    requested = expand_array_refs(requested, resolved)
     metric_refs = []
     for attr in ("thrust", "angle", "speed", "position"):
         text = getattr(scene.metrics, attr)
@@ -251,7 +251,7 @@ def plan(scene: Scene, outputs: Sequence[str] | None = None) -> Plan:
         notes.append(f"not needed for the requested signals, not instantiated: {', '.join(pruned)}")
 
     p = Plan(scene, resolved, instantiate, alias_of, source_of, requested, [], period, 0.0, pruned, notes)
-    _keep_used_fmu_outputs(p)
+    keep_used_outputs(p)
     p.loops = find_loops(p)
     problems = []
     for loop in p.loops:
@@ -275,67 +275,6 @@ def plan(scene: Scene, outputs: Sequence[str] | None = None) -> Plan:
     if problems:
         raise SceneError(problems, scene.name)
     return p
-
-
-def _arrays(rb: ResolvedBlock | None) -> dict[str, list[str]]:
-    info = rb.fmu_info if rb is not None else None
-    return dict(getattr(info, "arrays", None) or {})
-
-
-def _expand_array_connections(connections: Iterable[Connection], resolved: dict[str, ResolvedBlock],
-                              problems: list[str]) -> list[Connection]:
-    """A connection between two whole FMI 3 arrays becomes one connection per element; elements
-    (`v[2]`) connect like scalars."""
-    out = []
-    for conn in connections:
-        src_arrays, dst_arrays = _arrays(resolved.get(conn.src.block)), _arrays(resolved.get(conn.dst.block))
-        src_elems, dst_elems = src_arrays.get(conn.src.port), dst_arrays.get(conn.dst.port)
-        if src_elems is None and dst_elems is None:
-            out.append(conn)
-        elif src_elems is not None and dst_elems is not None and len(src_elems) == len(dst_elems):
-            out.extend(Connection(PortRef(conn.src.block, a), PortRef(conn.dst.block, b))
-                       for a, b in zip(src_elems, dst_elems))
-        else:
-            def shape(elems: list[str] | None) -> str:
-                return f"an array of {len(elems)}" if elems is not None else "a scalar"
-            problems.append(f"connection '{conn}': {conn.src} is {shape(src_elems)} but {conn.dst} is "
-                            f"{shape(dst_elems)}; connect arrays of the same size, or elements such as "
-                            f"{conn.src.block}.{(src_elems or dst_elems or ['v[0]'])[0]}")
-    return out
-
-
-def _expand_array_refs(refs: list[PortRef], resolved: dict[str, ResolvedBlock]) -> list[PortRef]:
-    """Recording a whole array records each of its elements."""
-    out = []
-    for ref in refs:
-        elems = _arrays(resolved.get(ref.block)).get(ref.port)
-        out.extend(PortRef(ref.block, e) for e in elems) if elems else out.append(ref)
-    return out
-
-
-def _drop_inputs(rb: ResolvedBlock, dangling: set[str]) -> None:
-    """An FMU file's unconnected inputs keep their start values: they leave the block's ports."""
-    rb.inputs = {k: v for k, v in rb.inputs.items() if k not in dangling}
-    rb.outputs = {k: dataclasses.replace(v, depends_on=tuple(d for d in v.depends_on if d not in dangling))
-                  for k, v in rb.outputs.items()}
-    rb.fmu_info = dataclasses.replace(rb.fmu_info, inputs=dict(rb.inputs), outputs=dict(rb.outputs))
-
-
-def _keep_used_fmu_outputs(p: Plan) -> None:
-    """An FMU file's outputs that nothing reads are never evaluated (whatever their type)."""
-    used: dict[str, set[str]] = {}
-    for dst, src in p.source_of.items():
-        if p.alias_of.get(dst.block) == dst.block:
-            c = p.canonical(src)
-            used.setdefault(c.block, set()).add(c.port)
-    for ref in p.requested:
-        c = p.canonical(ref)
-        used.setdefault(c.block, set()).add(c.port)
-    for name in p.instantiate:
-        rb = p.blocks[name]
-        if rb.fmu_info is not None and rb.model is None:
-            keep = used.get(name, set())
-            rb.fmu_info = dataclasses.replace(rb.fmu_info, outputs={k: v for k, v in rb.outputs.items() if k in keep})
 
 
 def _check_coupling(p: Plan) -> list[str]:
