@@ -48,6 +48,14 @@ class OdeGroup:
                                   max_step=max_step, n_roots=self.n_events,
                                   roots=self._roots if self.n_events else None)
         self.rhs_calls = 0
+        self.terminated_by = ""  # the unit that asked to end the simulation (terminateSimulation)
+
+    def check_not_terminated(self, t: float, t_end: float | None = None) -> None:
+        """An FMU that asked to terminate (before t_end, if given) ends the run with a StepError,
+        as a co-simulation FMU's doStep does: the data up to t are kept, never called complete."""
+        if self.terminated_by and (t_end is None or t < t_end - 1e-12 * max(1.0, abs(t_end))):
+            raise StepError(self.terminated_by, t, "the FMU asked to terminate the simulation",
+                            function="event update", cause="the model reached the end of its validity")
 
     def _initial_states(self) -> list[float]:
         x = (c_double * self.n)()
@@ -153,6 +161,8 @@ class OdeGroup:
             for u in due:
                 changed, _next, term = u.event_update()
                 changed_any |= changed
+                if term and not terminate:
+                    self.terminated_by = u.name
                 terminate |= term
             if changed_any:
                 for u, off in self.stateful:
@@ -220,15 +230,17 @@ class OdeGroup:
                     enter, term = u.completed_integrator_step()
                     event |= enter
                     if term:
+                        self.terminated_by = u.name
                         return t_cur
             if not event and sampled and abs(t_cur - t_stop) <= eps:
                 event = self.discrete_inputs_pending(t_cur)
-            if event and self.handle_event(t_cur):
-                return t_cur
+            terminate = event and self.handle_event(t_cur)
             while k < n_out and out_times[k] <= t_cur + eps:
                 self.set_point(out_times[k], cv.y_address)
                 on_output(out_times[k])
                 k += 1
+            if terminate:
+                return t_cur
         self.set_point(cv.t, cv.y_address)
         return cv.t
 
@@ -315,7 +327,7 @@ def run_strong(ctx: RunContext, t0: float, t_end: float) -> None:
 
     t_wall = time.perf_counter()
     try:
-        group.integrate(t_end, out_times, on_output)
+        group.check_not_terminated(group.integrate(t_end, out_times, on_output), t_end)
     except CVodeError as exc:
         raise group.diagnose(exc) from None
     finally:

@@ -39,7 +39,7 @@ class MeStepper:
             g.cv.reinit(t)  # the inputs jumped at the communication point
         self._held = held
         try:
-            g.integrate(t + h, np.empty(0), lambda _t: None)
+            g.check_not_terminated(g.integrate(t + h, np.empty(0), lambda _t: None))
         except CVodeError as exc:
             raise g.diagnose(exc) from None
         self.unit.set_time(t + h)

@@ -12,7 +12,8 @@ Models
   events  counter (Int32) += 1 at the time events t = k * period; x' = level with `level` a
           discrete Float64 input (settable only in initialization or event mode, as the standard
           says; the FMU logs why when set elsewhere); odd (Boolean) = counter is odd;
-          period <= 0 is refused at initialization with a log line
+          period <= 0 is refused at initialization with a log line; with max_count > 0 it asks
+          to terminate when the counter reaches it (Model Exchange; FMI 3.0 Co-Simulation too)
   vdp     Van der Pol oscillator, Model Exchange only: x0' = x1, x1' = mu (1 - x0^2) x1 - x0
 """
 from __future__ import annotations
@@ -78,6 +79,7 @@ def _types_spec(version: int) -> list[Var]:
 def _events_spec(version: int) -> list[Var]:
     return [
         Var("period", "Float64", "parameter", "fixed", 0.25, unit="s"),
+        Var("max_count", "Int32", "parameter", "fixed", 0),
         Var("level", "Float64", "input", "discrete", 0.0),
         Var("counter", "Int32", "output", "discrete", 0),
         Var("odd", "Boolean", "output", "discrete", False),

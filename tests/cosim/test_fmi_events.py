@@ -98,3 +98,17 @@ def test_a_model_exchange_fmu_under_gauss_seidel_is_as_accurate_as_under_strong_
                                np.max(np.abs(result["v.x1"] - ref.sol(result.time)[1])))
     assert errors["strong"] < 1e-3
     assert errors["gauss-seidel"] < 10 * errors["strong"]
+
+
+@pytest.mark.parametrize("version", [2, 3])
+@pytest.mark.parametrize("coupling,interface", [("strong", None), ("jacobi", "me")])
+def test_an_fmu_asking_to_terminate_ends_the_run_with_an_error_keeping_the_data(c_fmu, version, coupling, interface):
+    scene = _scene(c_fmu("events", version), coupling, interface).with_overrides({"clock.max_count": 2})
+    with pytest.raises(StepError, match="block 'clock' at t=0.5 s.*asked to terminate") as err:
+        run_scene(scene)
+    partial = err.value.partial
+    assert partial is not None and not partial.complete
+    if coupling == "strong":  # the values after the terminating event are recorded at its time
+        assert partial.time[-1] == pytest.approx(0.5, abs=1e-12) and partial["clock.counter"][-1] == 2
+    else:  # the step that ended with the request is not taken: the last communication point
+        assert partial.time[-1] < 0.5 and partial["clock.counter"][-1] == 1

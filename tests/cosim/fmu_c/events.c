@@ -1,5 +1,6 @@
 /* Time events and a discrete input: counter += 1 at t = k * period (k = 1, 2, ...), odd = counter
- * is odd, x' = level (level: discrete Float64 input). period <= 0 is refused with a log line. */
+ * is odd, x' = level (level: discrete Float64 input). period <= 0 is refused with a log line; the FMU asks to terminate once counter reaches
+ * max_count (if > 0). */
 #include "vars.h"
 #define N_STATES 1
 #define CS_SUBSTEP_S 1e-3
@@ -26,3 +27,4 @@ static int m_event(Model* m, double t, int* next_def, double* next_t) {
   *next_t = (m->counter + 1) * m->period;
   return 0;
 }
+static int m_terminate(Model* m) { return m->max_count > 0 && m->counter >= m->max_count; }

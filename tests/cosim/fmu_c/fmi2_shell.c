@@ -133,7 +133,7 @@ fmi2Status fmi2NewDiscreteStates(fmi2Component c, fmi2EventInfo* info) {
   Inst* s = (Inst*)c;
   if (s->mode != M_EVENT) { logf_(s, fmi2Error, "fmi2NewDiscreteStates outside event mode"); return fmi2Error; }
   info->valuesOfContinuousStatesChanged = m_event(&s->m, s->time, &s->next_def, &s->next_t) ? fmi2True : fmi2False;
-  info->newDiscreteStatesNeeded = fmi2False; info->terminateSimulation = fmi2False;
+  info->newDiscreteStatesNeeded = fmi2False; info->terminateSimulation = m_terminate(&s->m) ? fmi2True : fmi2False;
   info->nominalsOfContinuousStatesChanged = fmi2False;
   info->nextEventTimeDefined = s->next_def ? fmi2True : fmi2False; info->nextEventTime = s->next_t;
   return fmi2OK;

@@ -197,7 +197,7 @@ fmi3Status fmi3UpdateDiscreteStates(fmi3Instance i, fmi3Boolean* need, fmi3Boole
   Inst* s = (Inst*)i;
   if (s->mode != M_EVENT && s->mode != M_INIT) { logf_(s, fmi3Error, "fmi3UpdateDiscreteStates outside event mode"); return fmi3Error; }
   *values = m_event(&s->m, s->time, &s->next_def, &s->next_t) ? fmi3True : fmi3False;
-  *need = fmi3False; *term = fmi3False; *nom = fmi3False;
+  *need = fmi3False; *term = m_terminate(&s->m) ? fmi3True : fmi3False; *nom = fmi3False;
   *next_def = s->next_def ? fmi3True : fmi3False; *next_t = s->next_t;
   return fmi3OK;
 }
@@ -257,6 +257,7 @@ fmi3Status fmi3DoStep(fmi3Instance i, fmi3Float64 t, fmi3Float64 h, fmi3Boolean 
   }
   s->time = t_end;
   *last = t_end;
+  *term = m_terminate(&s->m) ? fmi3True : fmi3False;
   return fmi3OK;
 }
 fmi3Status fmi3ActivateModelPartition(fmi3Instance i, fmi3ValueReference c, fmi3Float64 t) { return fmi3Error; }

@@ -32,3 +32,4 @@ static void m_der(Model* m, double t, double dx[]) {}
 static void m_get_x(Model* m, double x[]) {}
 static void m_set_x(Model* m, const double x[]) {}
 static int m_event(Model* m, double t, int* next_def, double* next_t) { *next_def = 0; return 0; }
+static int m_terminate(Model* m) { return 0; }

@@ -13,3 +13,4 @@ static void m_der(Model* m, double t, double dx[]) { dx[0] = m->der_x0_; dx[1] =
 static void m_get_x(Model* m, double x[]) { x[0] = m->x0; x[1] = m->x1; }
 static void m_set_x(Model* m, const double x[]) { m->x0 = x[0]; m->x1 = x[1]; }
 static int m_event(Model* m, double t, int* next_def, double* next_t) { *next_def = 0; return 0; }
+static int m_terminate(Model* m) { return 0; }
