@@ -117,9 +117,13 @@ def typed_signal(port_type_: str, column: np.ndarray) -> np.ndarray:
 def parameter_value(port_type_: str, value: Any, where: str) -> Any:
     """A scene parameter value converted to the FMU variable's type, or a one-line ValueError."""
     if port_type_ == "String":
-        if not isinstance(value, str):
-            raise ValueError(f"{where}: {value!r} is not a string")
-        return value
+        if isinstance(value, str):
+            return value
+        if isinstance(value, bool):  # --set KEY=true arrives parsed
+            return "true" if value else "false"
+        if isinstance(value, (int, float)):  # --set KEY=42 arrives parsed
+            return str(value)
+        raise ValueError(f"{where}: {value!r} is not a string")
     if port_type_ == "Binary":
         if isinstance(value, (bytes, bytearray)):
             return bytes(value)
