@@ -7,7 +7,8 @@ disagree. `build(name, version, folder)` compiles with gcc against fmpy's FMI he
 
 Models
   types   every scalar type the FMI version has, in and out: T_output = T_input + T_parameter
-          (Boolean: xor; String and Binary: the parameter followed by the input); FMI 3.0 adds
+          (Boolean: xor; String and Binary: the parameter followed by the input; Enumeration:
+          the larger of the two); FMI 3.0 adds
           an array port Float64_vector_output[3] = 2 * Float64_vector_input[3]
   events  counter (Int32) += 1 at the time events t = k * period; x' = level with `level` a
           discrete Float64 input (settable only in initialization or event mode, as the standard
@@ -35,7 +36,9 @@ C_TYPE = {"Float64": "double", "Float32": "float", "Int8": "int8_t", "UInt8": "u
 V_TYPE = {"Float64": "F64", "Float32": "F32", "Int8": "I8", "UInt8": "U8", "Int16": "I16", "UInt16": "U16",
           "Int32": "I32", "UInt32": "U32", "Int64": "I64", "UInt64": "U64", "Boolean": "BOOL", "String": "STR",
           "Binary": "BIN"}
-FMI2_TYPE = {"Float64": "Real", "Int32": "Integer", "Boolean": "Boolean", "String": "String"}
+FMI2_TYPE = {"Float64": "Real", "Int32": "Integer", "Boolean": "Boolean", "String": "String", "Enumeration": "Enumeration"}
+#: the test FMUs' one enumeration type: declared in TypeDefinitions, Int32 in FMI 2.0, Int64 in 3.0
+MODE_ITEMS = (("off", 1), ("on", 2), ("auto", 3))
 CAUS = {"fixed": "PAR_FIXED", "tunable": "PAR_TUNABLE", "input": "INPUT", "output": "OUTPUT", "local": "LOCAL"}
 
 
@@ -59,15 +62,16 @@ class Var:
 SCALARS3 = ["Float32", "Float64", "Int8", "UInt8", "Int16", "UInt16", "Int32", "UInt32", "Int64", "UInt64",
             "Boolean", "String", "Binary"]
 PARAM_START = {"Float32": 0.5, "Float64": 0.25, "Boolean": False, "String": "p:", "Binary": "00"}
+INPUT_START = {"String": "", "Binary": "00", "Enumeration": 1}
 
 
 def _types_spec(version: int) -> list[Var]:
-    names = SCALARS3 if version == 3 else ["Float64", "Int32", "Boolean", "String"]
+    names = (SCALARS3 if version == 3 else ["Float64", "Int32", "Boolean", "String"]) + ["Enumeration"]
     out = []
     for t in names:
         cont = "continuous" if t.startswith("Float") else "discrete"
         out.append(Var(f"{t}_parameter", t, "parameter", "tunable", PARAM_START.get(t, 1)))
-        out.append(Var(f"{t}_input", t, "input", cont, "" if t == "String" else ("00" if t == "Binary" else 0)))
+        out.append(Var(f"{t}_input", t, "input", cont, INPUT_START.get(t, 0)))
         out.append(Var(f"{t}_output", t, "output", cont, depends=(f"{t}_input",)))
     if version == 3:
         out.append(Var("Float64_vector_input", "Float64", "input", "continuous", 0.0, size=3))
@@ -114,12 +118,18 @@ def _c_start(v: Var) -> str:
     return f"m->{v.field} = {value};"
 
 
-def vars_header(spec: list[Var]) -> str:
-    fields = "\n".join(f"  {C_TYPE[v.type]} {v.field}{f'[{v.size}]' if v.size > 1 else ''};" for v in spec)
+def _c_types(version: int) -> tuple[dict[str, str], dict[str, str]]:
+    enum = ("int64_t", "I64") if version == 3 else ("int32_t", "I32")
+    return {**C_TYPE, "Enumeration": enum[0]}, {**V_TYPE, "Enumeration": enum[1]}
+
+
+def vars_header(spec: list[Var], version: int) -> str:
+    c_type, v_type = _c_types(version)
+    fields = "\n".join(f"  {c_type[v.type]} {v.field}{f'[{v.size}]' if v.size > 1 else ''};" for v in spec)
     rows = []
     for vr, v in enumerate(spec):
         caus = CAUS[v.variability] if v.causality == "parameter" else CAUS[v.causality]
-        rows.append(f'  {{{vr}, "{v.name}", {V_TYPE[v.type]}, {caus}, {int(v.variability == "discrete")}, {v.size}, '
+        rows.append(f'  {{{vr}, "{v.name}", {v_type[v.type]}, {caus}, {int(v.variability == "discrete")}, {v.size}, '
                     f"offsetof(Model, {v.field})}},")
     starts = "\n".join(f"  {_c_start(v)}" for v in spec if v.start is not None)
     return (f"typedef struct {{\n{fields}\n}} Model;\n"
@@ -156,6 +166,8 @@ def model_description(name: str, spec: list[Var], version: int, me: bool, cs: bo
         if v.causality == "output" or v.causality == "local":
             initial = ' initial="exact"' if v.start is not None else (' initial="calculated"' if v.causality == "output" else "")
         unit = f' unit="{v.unit}"' if v.unit else ""
+        if v.type == "Enumeration":
+            unit = ' declaredType="Mode"'
         start = _xml_start(v)
         deriv = f' derivative="{index[v.derivative_of] + (1 if version == 2 else 0)}"' if v.derivative_of else ""
         if version == 3:
@@ -192,6 +204,13 @@ def model_description(name: str, spec: list[Var], version: int, me: bool, cs: bo
             struct += "    <InitialUnknowns>\n" + "".join(f'      <Unknown index="{index[v.name] + 1}"/>\n' for v in calc) + "    </InitialUnknowns>\n"
         head = (f'<fmiModelDescription fmiVersion="2.0" modelName="{name}" guid="{guid}" generationTool="featherstar tests" '
                 f'numberOfEventIndicators="0">\n')
+    if any(v.type == "Enumeration" for v in spec):
+        items = "".join(f'      <Item name="{n}" value="{k}"/>\n' for n, k in MODE_ITEMS)
+        unit_xml += ("  <TypeDefinitions>\n    <EnumerationType name=\"Mode\">\n" + items + "    </EnumerationType>\n"
+                     "  </TypeDefinitions>\n" if version == 3 else
+                     "  <TypeDefinitions>\n    <SimpleType name=\"Mode\">\n      <Enumeration>\n" +
+                     items.replace("      <Item", "        <Item") + "      </Enumeration>\n    </SimpleType>\n"
+                     "  </TypeDefinitions>\n")
     return ('<?xml version="1.0" encoding="UTF-8"?>\n' + head + ifaces + unit_xml + "  <ModelVariables>\n" +
             "\n".join(lines) + "\n  </ModelVariables>\n  <ModelStructure>\n" + struct + "  </ModelStructure>\n"
             "</fmiModelDescription>\n")
@@ -202,7 +221,7 @@ def build(name: str, version: int, folder: Path) -> Path:
     spec_fn, me, cs = MODELS[name]
     spec = spec_fn(version)
     xml = model_description(name, spec, version, me, cs)
-    header = vars_header(spec)
+    header = vars_header(spec, version)
     sources = [SOURCE / "shell.h", SOURCE / f"fmi{version}_shell.c", SOURCE / f"{name}.c"]
     digest = hashlib.sha1((xml + header + "".join(p.read_text() for p in sources)).encode()).hexdigest()[:12]
     fmu = folder / f"{name}{version}-{digest}.fmu"

@@ -13,13 +13,13 @@ from cosim.graph import plan
 from cosim.run import run_scene
 from cosim.scene import scene_from_dict
 
-TYPES = {2: ["Float64", "Int32", "Boolean", "String"],
+TYPES = {2: ["Float64", "Int32", "Boolean", "String", "Enumeration"],
          3: ["Float32", "Float64", "Int8", "UInt8", "Int16", "UInt16", "Int32", "UInt32", "Int64", "UInt64",
-             "Boolean", "String", "Binary"]}
+             "Boolean", "String", "Binary", "Enumeration"]}
 #: parameters of the first FMU (the second keeps its start values, see c_fmus.PARAM_START)
 SET = {"Float32": 1.5, "Float64": -2.75, "Int8": -100, "UInt8": 200, "Int16": -30000, "UInt16": 60000,
        "Int32": -2_000_000_000, "UInt32": 4_000_000_000, "Int64": -(2 ** 53) + 3, "UInt64": 2 ** 53 - 7,
-       "Boolean": True, "String": "hello, ", "Binary": "c0ffee"}
+       "Boolean": True, "String": "hello, ", "Binary": "c0ffee", "Enumeration": 3}
 START = {"Float32": 0.5, "Float64": 0.25, "Boolean": False, "String": "p:", "Binary": b"\x00"}
 
 
@@ -32,6 +32,8 @@ def _expected(t: str):
         return b + a            # output = parameter + input
     if t == "Binary":
         return b + bytes.fromhex(a) + b"\x00"  # b's parameter + (a's parameter + a's input)
+    if t == "Enumeration":
+        return max(max(1, a), b)  # the larger of input (start 1) and parameter, twice
     return a + b
 
 
@@ -70,6 +72,8 @@ def test_every_scalar_type_in_and_out(c_fmu, version, coupling):
             assert values.dtype == np.bool_
         elif t.startswith(("Int", "UInt")):
             assert values.dtype == np.dtype(t.lower())
+        elif t == "Enumeration":  # FMI 2.0: Integer; FMI 3.0: Int64
+            assert values.dtype == (np.int32 if version == 2 else np.int64)
 
 
 def test_safe_conversions_connect_and_unsafe_ones_are_refused_by_name(c_fmu):

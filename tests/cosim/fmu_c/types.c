@@ -1,5 +1,5 @@
 /* Every scalar type in and out: T_output = T_input + T_parameter (Boolean: xor, String and
- * Binary: parameter followed by input); FMI 3.0 also an array port. */
+ * Binary: parameter followed by input; Enumeration: the larger); FMI 3.0 also an array port. */
 #include "vars.h"
 #define N_STATES 0
 #define CS_SUBSTEP_S 1.0
@@ -10,6 +10,7 @@ static void m_update(Model* m, double t) {
   m->Float64_output = m->Float64_input + m->Float64_parameter;
   m->Int32_output = m->Int32_input + m->Int32_parameter;
   m->Boolean_output = m->Boolean_input ^ m->Boolean_parameter;
+  m->Enumeration_output = m->Enumeration_input > m->Enumeration_parameter ? m->Enumeration_input : m->Enumeration_parameter;
   snprintf(m->String_output, sizeof(StrVal), "%s%s", m->String_parameter, m->String_input);
 #if FMI_MAJOR == 3
   m->Float32_output = m->Float32_input + m->Float32_parameter;
