@@ -122,3 +122,21 @@ def test_the_adaptive_macro_step_does_not_take_a_discrete_jump_for_a_hold_error(
     result = run_scene(scene)
     assert result.summary["stats"]["rejected_steps"] == 0
     assert np.max(np.abs(result["integ.x"] - _integral_of_counter(result.time))) < 0.06
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_a_discrete_input_driven_by_a_continuous_signal_is_sampled_on_the_recording_grid(c_fmu, version):
+    """Strong coupling: the stroke angle drives the discrete input `level`; it is taken (in event
+    mode) at every recording time, held in between, so x is the left Riemann sum of the samples."""
+    scene = scene_from_dict({
+        "name": "sampled", "connections": ["controller.angle_rad -> to_level.u", "to_level.y -> integ.level"],
+        "master": {"coupling": "strong", "t_end_s": 1.0, "output_interval_s": 0.01, "rtol": 1e-10, "atol": 1e-12},
+        "blocks": {"controller": {"kind": "stroke"}, "integ": {"kind": "fmu", "fmu": str(c_fmu("events", version))},
+                   "to_level": {"kind": "gain", "gain": 1.0, "unit_in": "rad", "unit_out": ""},
+                   "rec": {"kind": "recorder", "signals": ["controller.angle_rad", "integ.x"]}},
+    })
+    result = run_scene(scene)
+    angle, x = result["controller.angle_rad"], result["integ.x"]
+    riemann = np.concatenate([[0.0], np.cumsum(angle[:-1] * np.diff(result.time))])
+    assert np.max(np.abs(angle)) > 0.5
+    assert np.max(np.abs(x - riemann)) < 1e-9
