@@ -16,6 +16,8 @@ Models
           period <= 0 is refused at initialization with a log line; with max_count > 0 it asks
           to terminate when the counter reaches it (Model Exchange; FMI 3.0 Co-Simulation too)
   vdp     Van der Pol oscillator, Model Exchange only: x0' = x1, x1' = mu (1 - x0^2) x1 - x0
+  ball    bouncing ball, Model Exchange only: h' = v, v' = -g; a state event at h = 0 falling
+          (event indicator z = h) sets v := -e v and counts bounces (Int32)
 """
 from __future__ import annotations
 
@@ -53,6 +55,7 @@ class Var:
     depends: tuple[str, ...] = ()
     unit: str = ""
     derivative_of: str = ""
+    indicator: bool = False  # an event indicator (FMI 3.0 lists it in <ModelStructure>)
 
     @property
     def field(self) -> str:
@@ -102,7 +105,21 @@ def _vdp_spec(version: int) -> list[Var]:
     ]
 
 
-MODELS = {"types": (_types_spec, True, True), "events": (_events_spec, True, True), "vdp": (_vdp_spec, True, False)}
+def _ball_spec(version: int) -> list[Var]:
+    return [
+        Var("g", "Float64", "parameter", "fixed", 9.81, unit="m/s2"),
+        Var("e", "Float64", "parameter", "fixed", 0.7),
+        Var("h", "Float64", "output", "continuous", 1.0, unit="m"),
+        Var("der(h)", "Float64", "local", "continuous", derivative_of="h", unit="m/s"),
+        Var("v", "Float64", "output", "continuous", 0.0, unit="m/s"),
+        Var("der(v)", "Float64", "local", "continuous", derivative_of="v", unit="m/s2"),
+        Var("bounces", "Int32", "output", "discrete", 0),
+        Var("z", "Float64", "local", "continuous", indicator=True),
+    ]
+
+
+MODELS = {"types": (_types_spec, True, True), "events": (_events_spec, True, True), "vdp": (_vdp_spec, True, False),
+          "ball": (_ball_spec, True, False)}
 
 
 def _c_start(v: Var) -> str:
@@ -190,6 +207,7 @@ def model_description(name: str, spec: list[Var], version: int, me: bool, cs: bo
         struct += "".join(f'    <ContinuousStateDerivative valueReference="{index[v.name]}"/>\n' for v in states)
         struct += "".join(f'    <InitialUnknown valueReference="{index[v.name]}"/>\n'
                           for v in spec if (v.causality == "output" and v.start is None) or v.derivative_of)
+        struct += "".join(f'    <EventIndicator valueReference="{index[v.name]}"/>\n' for v in spec if v.indicator)
         lines.insert(0, f'    <Float64 name="time" valueReference="{len(spec)}" causality="independent" variability="continuous"/>')
         head = (f'<fmiModelDescription fmiVersion="3.0" modelName="{name}" instantiationToken="{guid}" '
                 f'generationTool="featherstar tests">\n')
@@ -203,7 +221,7 @@ def model_description(name: str, spec: list[Var], version: int, me: bool, cs: bo
         if calc:
             struct += "    <InitialUnknowns>\n" + "".join(f'      <Unknown index="{index[v.name] + 1}"/>\n' for v in calc) + "    </InitialUnknowns>\n"
         head = (f'<fmiModelDescription fmiVersion="2.0" modelName="{name}" guid="{guid}" generationTool="featherstar tests" '
-                f'numberOfEventIndicators="0">\n')
+                f'numberOfEventIndicators="{sum(v.indicator for v in spec)}">\n')
     if any(v.type == "Enumeration" for v in spec):
         items = "".join(f'      <Item name="{n}" value="{k}"/>\n' for n, k in MODE_ITEMS)
         unit_xml += ("  <TypeDefinitions>\n    <EnumerationType name=\"Mode\">\n" + items + "    </EnumerationType>\n"

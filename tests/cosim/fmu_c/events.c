@@ -2,6 +2,7 @@
  * is odd, x' = level (level: discrete Float64 input). period <= 0 is refused with a log line; the FMU asks to terminate once counter reaches
  * max_count (if > 0). */
 #include "vars.h"
+#define N_INDICATORS 0
 #define N_STATES 1
 #define CS_SUBSTEP_S 1e-3
 
@@ -28,3 +29,4 @@ static int m_event(Model* m, double t, int* next_def, double* next_t) {
   return 0;
 }
 static int m_terminate(Model* m) { return m->max_count > 0 && m->counter >= m->max_count; }
+static void m_ind(Model* m, double t, double z[]) {}

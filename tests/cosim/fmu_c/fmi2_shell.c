@@ -150,7 +150,11 @@ fmi2Status fmi2GetDerivatives(fmi2Component c, fmi2Real dx[], size_t n) {
   Inst* s = (Inst*)c; if (n != N_STATES) return fmi2Error;
   m_update(&s->m, s->time); m_der(&s->m, s->time, dx); return fmi2OK;
 }
-fmi2Status fmi2GetEventIndicators(fmi2Component c, fmi2Real z[], size_t n) { return n == 0 ? fmi2OK : fmi2Error; }
+fmi2Status fmi2GetEventIndicators(fmi2Component c, fmi2Real z[], size_t n) {
+  Inst* s = (Inst*)c;
+  if (n != N_INDICATORS) return fmi2Error;
+  m_update(&s->m, s->time); m_ind(&s->m, s->time, z); return fmi2OK;
+}
 fmi2Status fmi2GetContinuousStates(fmi2Component c, fmi2Real x[], size_t n) {
   if (n != N_STATES) return fmi2Error; m_get_x(&((Inst*)c)->m, x); return fmi2OK;
 }

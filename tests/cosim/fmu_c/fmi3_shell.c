@@ -214,14 +214,18 @@ fmi3Status fmi3GetContinuousStateDerivatives(fmi3Instance i, fmi3Float64 dx[], s
   Inst* s = (Inst*)i; if (n != N_STATES) return fmi3Error;
   m_update(&s->m, s->time); m_der(&s->m, s->time, dx); return fmi3OK;
 }
-fmi3Status fmi3GetEventIndicators(fmi3Instance i, fmi3Float64 z[], size_t n) { return n == 0 ? fmi3OK : fmi3Error; }
+fmi3Status fmi3GetEventIndicators(fmi3Instance i, fmi3Float64 z[], size_t n) {
+  Inst* s = (Inst*)i;
+  if (n != N_INDICATORS) return fmi3Error;
+  m_update(&s->m, s->time); m_ind(&s->m, s->time, z); return fmi3OK;
+}
 fmi3Status fmi3GetContinuousStates(fmi3Instance i, fmi3Float64 x[], size_t n) {
   if (n != N_STATES) return fmi3Error; m_get_x(&((Inst*)i)->m, x); return fmi3OK;
 }
 fmi3Status fmi3GetNominalsOfContinuousStates(fmi3Instance i, fmi3Float64 x[], size_t n) {
   for (size_t k = 0; k < n; k++) x[k] = 1.0; return fmi3OK;
 }
-fmi3Status fmi3GetNumberOfEventIndicators(fmi3Instance i, size_t* n) { *n = 0; return fmi3OK; }
+fmi3Status fmi3GetNumberOfEventIndicators(fmi3Instance i, size_t* n) { *n = N_INDICATORS; return fmi3OK; }
 fmi3Status fmi3GetNumberOfContinuousStates(fmi3Instance i, size_t* n) { *n = N_STATES; return fmi3OK; }
 
 fmi3Status fmi3EnterStepMode(fmi3Instance i) { ((Inst*)i)->mode = M_STEP; return fmi3OK; }

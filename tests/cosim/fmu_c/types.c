@@ -1,6 +1,7 @@
 /* Every scalar type in and out: T_output = T_input + T_parameter (Boolean: xor, String and
  * Binary: parameter followed by input; Enumeration: the larger); FMI 3.0 also an array port. */
 #include "vars.h"
+#define N_INDICATORS 0
 #define N_STATES 0
 #define CS_SUBSTEP_S 1.0
 
@@ -34,3 +35,4 @@ static void m_get_x(Model* m, double x[]) {}
 static void m_set_x(Model* m, const double x[]) {}
 static int m_event(Model* m, double t, int* next_def, double* next_t) { *next_def = 0; return 0; }
 static int m_terminate(Model* m) { return 0; }
+static void m_ind(Model* m, double t, double z[]) {}
