@@ -166,3 +166,21 @@ def test_arrays_connect_whole_and_by_element(c_fmu, coupling):
     bad = scene_from_dict({**scene.to_dict(), "connections": ["a.Float64_vector_output -> b.Float64_input"]})
     with pytest.raises(SceneError, match="is an array of 3 but b.Float64_input is a scalar"):
         plan(bad)
+
+
+def test_results_csv_writes_every_type_in_full(c_fmu, tmp_path):
+    import csv
+
+    from cosim.report import write_outputs
+
+    fmu = c_fmu("types", 3)
+    types = ["UInt64", "Int64", "Boolean", "String", "Binary", "Float64"]
+    result = run_scene(_scene(fmu, types))
+    paths = write_outputs(result, tmp_path, figure=False)
+    rows = list(csv.reader(paths["results"].open()))
+    header, last = rows[0], rows[-1]
+    row = dict(zip([h.split(" [")[0] for h in header], last))
+    assert int(row["b.UInt64_output"]) == 2 ** 53 - 7 + 1       # all 16 digits, not %.10g
+    assert int(row["b.Int64_output"]) == -(2 ** 53) + 3 + 1
+    assert row["b.Boolean_output"] == "1" and row["b.String_output"] == "p:hello, "
+    assert row["b.Binary_output"] == "00c0ffee00" and float(row["b.Float64_output"]) == -2.75 + 0.25
