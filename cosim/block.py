@@ -13,12 +13,16 @@ from typing import Mapping, Protocol, runtime_checkable
 @dataclass(frozen=True)
 class Port:
     """A named scalar port. For outputs, `depends_on` names the inputs it reads at the same
-    instant (direct feedthrough); the master uses it to order evaluation and find algebraic loops."""
+    instant (direct feedthrough); the master uses it to order evaluation and find algebraic loops.
+    `type` is an FMI 3.0 type name (cosim.fmi_types; Python blocks are Float64); a `discrete`
+    port changes only at events (an FMU's discrete input can be set only in event mode)."""
 
     name: str
     unit: str
     description: str = ""
     depends_on: tuple[str, ...] = ()
+    type: str = "Float64"
+    discrete: bool = False
 
 
 @runtime_checkable

@@ -31,6 +31,7 @@ from fmu_src.errors import FeatherstarError, ModelError
 from .block import Block, MemorylessBlock, Port, RollbackBlock, can_iterate
 from .controller import STROKE_KEYS, StrokeController, resolve_stroke
 from .errors import SceneError
+from .fmi_types import parameter_value
 from .scene import BlockSpec, FrozenMap, PortRef, parse_value
 
 
@@ -47,7 +48,7 @@ class ResolvedBlock:
     identity: Hashable | None = None  # equal identities + equal input sources => interchangeable
     period_s: float | None = None
     model: Any = None  # fmu_src Model for model-backed blocks
-    parameters: dict[str, float] = field(default_factory=dict)
+    parameters: dict[str, Any] = field(default_factory=dict)  # models: floats; FMU files: each variable's type
     fmu_path: Path | None = None
     fmu_info: Any = None
     obj: Any = None  # python block object (stroke, gain, python kinds)
@@ -338,7 +339,7 @@ def model_feedthrough(model: Any) -> dict[str, tuple[str, ...]]:
 
 class FmuKind(BlockKind):
     name = "fmu"
-    KEYS = ("model", "fmu", "options", "parameters")
+    KEYS = ("model", "fmu", "options", "parameters", "interface")
 
     def override(self, spec: BlockSpec, key: str, raw: Any) -> BlockSpec:
         return dataclasses.replace(spec, overrides=spec.overrides.set(key, parse_value(raw)))
@@ -402,7 +403,7 @@ class FmuKind(BlockKind):
                              model=model, parameters={k: float(v) for k, v in params.items()}, notes=notes)
 
     def _resolve_file(self, spec: BlockSpec, fmu_ref: str) -> ResolvedBlock:
-        from .fmu_block import read_fmu_info
+        from .fmu_info import read_fmu_info
         from .preflight import check_fmu_archive
 
         path = Path(fmu_ref).expanduser()
@@ -410,18 +411,39 @@ class FmuKind(BlockKind):
             raise SceneError(f"{_where(spec)}: FMU file '{fmu_ref}' does not exist")
         check_fmu_archive(path, _where(spec))
         info = read_fmu_info(path, spec.name)
-        params = {**dict(spec.settings.get("parameters", {})), **spec.overrides}
+        overrides = dict(spec.overrides)
+        interface = overrides.pop("interface", spec.settings.get("interface"))
+        if interface is not None:
+            info = _choose_interface(info, str(interface), _where(spec))
+        params = {**dict(spec.settings.get("parameters", {})), **overrides}
         if "options" in spec.settings:
             raise SceneError(f"{_where(spec)}: build options apply to models, not to an FMU file")
+        typed = {}
         for key, value in params.items():
             if key not in info.parameters:
                 raise SceneError(f"{_where(spec)}: FMU '{path.name}' has no tunable/fixed parameter '{key}'; "
                                  f"it has: {', '.join(sorted(info.parameters)) or 'none'}")
-            if isinstance(value, (str, bool)):
-                raise SceneError(f"{_where(spec)}: parameter {key} = {value!r} is not a number")
+            try:
+                typed[key] = parameter_value(info.parameter_types[key], value,
+                                             f"{_where(spec)}: parameter {key} ({info.parameter_types[key]})")
+            except ValueError as exc:
+                raise SceneError(str(exc)) from None
         return ResolvedBlock(spec, dict(info.inputs), dict(info.outputs), iterable=True,
-                             continuous=info.has_me, identity=("fmu", str(path.resolve()), FrozenMap(params)),
-                             parameters={k: float(v) for k, v in params.items()}, fmu_path=path, fmu_info=info)
+                             continuous=info.has_me, identity=("fmu", str(path.resolve()), interface, FrozenMap(params)),
+                             parameters=typed, fmu_path=path, fmu_info=info)
+
+
+def _choose_interface(info: Any, interface: str, where: str) -> Any:
+    """The FMU seen through one interface only (`interface = "me"` or `"cs"`)."""
+    md = info.model_description
+    if interface == "me" and info.has_me:
+        return dataclasses.replace(info, has_cs=False, can_get_set_state=bool(md.modelExchange.canGetAndSetFMUstate))
+    if interface == "cs" and info.has_cs:
+        return dataclasses.replace(info, has_me=False)
+    if interface in ("me", "cs"):
+        raise SceneError(f"{where}: interface = \"{interface}\" but the FMU has no "
+                         f"{'Model Exchange' if interface == 'me' else 'Co-Simulation'} interface")
+    raise SceneError(f"{where}: interface = {interface!r}; use \"me\" (Model Exchange) or \"cs\" (Co-Simulation)")
 
 
 KINDS: dict[str, BlockKind] = {k.name: k for k in (StrokeKind(), RecorderKind(), ConstantKind(), GainKind(), PythonKind(), FmuKind())}

@@ -21,6 +21,8 @@ from typing import Iterable, Sequence
 
 from .blocks import ResolvedBlock, is_rollback_capable, resolve
 from .errors import SceneError
+from .fmi_types import conversion_problem
+from .fmu_ports import expand_array_connections, expand_array_refs, hold_unconnected_inputs, keep_used_outputs
 from .guards import step_problems
 from .scene import FrozenMap, PortRef, Scene
 
@@ -128,7 +130,7 @@ def plan(scene: Scene, outputs: Sequence[str] | None = None) -> Plan:
         return True
 
     source_of: dict[PortRef, PortRef] = {}
-    for conn in scene.connections:
+    for conn in expand_array_connections(scene.connections, resolved, problems):
         ok = check_output(conn.src, f"connection '{conn}'")
         dst = conn.dst
         if dst.block not in names:
@@ -151,12 +153,19 @@ def plan(scene: Scene, outputs: Sequence[str] | None = None) -> Plan:
             u_dst = rb.inputs[dst.port].unit
             if not same_unit(u_src, u_dst):
                 problems.append(f"unit mismatch on '{conn}': output is in '{u_src}', input expects '{u_dst}'")
+            why = conversion_problem(resolved[conn.src.block].outputs[conn.src.port].type, rb.inputs[dst.port].type)
+            if why:
+                problems.append(f"type mismatch on '{conn}': {why}")
+    held_notes: list[str] = []
     for name, rb in resolved.items():
-        for port in rb.inputs:
-            ref = PortRef(name, port)
-            if ref not in source_of:
-                problems.append(f"input {ref} is not connected (dangling): connect an output to it "
-                                f"(a constant block for a fixed value)")
+        dangling = [port for port in rb.inputs if PortRef(name, port) not in source_of]
+        if dangling and rb.fmu_info is not None and rb.model is None:
+            held_notes.append(f"{name}: input(s) {', '.join(dangling)} not connected: held at the FMU's start values")
+            hold_unconnected_inputs(rb, set(dangling))
+            continue
+        for port in dangling:
+            problems.append(f"input {PortRef(name, port)} is not connected (dangling): connect an output to it "
+                            f"(a constant block for a fixed value)")
 
     # requested signals
     requested: list[PortRef] = []
@@ -169,6 +178,7 @@ def plan(scene: Scene, outputs: Sequence[str] | None = None) -> Plan:
     else:
         for rb in resolved.values():
             requested.extend(rb.signals)
+    requested = expand_array_refs(requested, resolved)
     metric_refs = []
     for attr in ("thrust", "angle", "speed", "position"):
         text = getattr(scene.metrics, attr)
@@ -233,7 +243,7 @@ def plan(scene: Scene, outputs: Sequence[str] | None = None) -> Plan:
                 while alias_of[alias_of[n]] != alias_of[n]:
                     alias_of[n] = alias_of[alias_of[n]]
     instantiate = [n for n in names if n in needed and alias_of[n] == n]
-    notes: list[str] = list(amplitude_notes)
+    notes: list[str] = list(amplitude_notes) + held_notes
     for n in names:
         if n in needed and alias_of[n] != n:
             notes.append(f"'{n}' is identical to '{alias_of[n]}' and driven by the same signals: integrated once")
@@ -241,6 +251,7 @@ def plan(scene: Scene, outputs: Sequence[str] | None = None) -> Plan:
         notes.append(f"not needed for the requested signals, not instantiated: {', '.join(pruned)}")
 
     p = Plan(scene, resolved, instantiate, alias_of, source_of, requested, [], period, 0.0, pruned, notes)
+    keep_used_outputs(p)
     p.loops = find_loops(p)
     problems = []
     for loop in p.loops:

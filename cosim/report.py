@@ -92,12 +92,32 @@ def write_outputs(result: Any, out_dir: str | Path, *, figure: bool = True) -> d
     paths["summary"].write_text(json.dumps(_jsonable(payload), indent=2) + "\n")
     names = list(result.signals)
     header = ",".join(["time [s]"] + [f"{n} [{result.units.get(n, '')}]" for n in names])
-    data = np.column_stack([result.time] + [result.signals[n] for n in names]) if len(result.time) else np.zeros((0, 1 + len(names)))
-    np.savetxt(paths["results"], data, delimiter=",", header=header, comments="", fmt="%.10g")
+    columns = [result.time] + [result.signals[n] for n in names]
+    if all(c.dtype == np.float64 for c in columns):
+        data = np.column_stack(columns) if len(result.time) else np.zeros((0, 1 + len(names)))
+        np.savetxt(paths["results"], data, delimiter=",", header=header, comments="", fmt="%.10g")
+    else:  # FMU ports of other types: integers in full, Booleans 0/1, strings quoted, bytes in hex
+        import csv
+
+        with paths["results"].open("w", newline="") as fh:
+            fh.write(header + "\n")
+            writer = csv.writer(fh)
+            for row in zip(*columns):
+                writer.writerow([_cell(v) for v in row])
     if figure and len(result.time) > 1:
         paths["figure"] = out / "thrust.png"
         plot_run(result, paths["figure"])
     return paths
+
+
+def _cell(value: Any) -> str:
+    if isinstance(value, (bytes, bytearray)):
+        return bytes(value).hex()
+    if isinstance(value, (bool, np.bool_)):
+        return str(int(value))
+    if isinstance(value, (float, np.floating)):
+        return f"{float(value):.10g}"
+    return "" if value is None else str(value)
 
 
 def plot_run(result: Any, path: str | Path) -> None:

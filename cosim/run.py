@@ -15,6 +15,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from .errors import RunInterrupted, SceneError, StepError
+from .fmi_types import typed_signal
 from .graph import Plan, plan as make_plan
 from .master import RunContext, make_context
 from .strong import run_strong
@@ -217,7 +218,8 @@ def _result(plan: Plan, ctx: RunContext, wall: float, overrides: Mapping[str, An
     del ctx.rows[n:], ctx.times[n:]
     t = np.asarray(ctx.times, dtype=float)
     data = np.asarray(ctx.rows, dtype=float).reshape(n, len(plan.requested))
-    signals = {str(ref): data[:, j].copy() for j, ref in enumerate(plan.requested)}
+    signals = {str(ref): typed_signal(plan.blocks[ref.block].outputs[ref.port].type, data[:, j].copy())
+               for j, ref in enumerate(plan.requested)}
     port_units = {str(ref): plan.blocks[ref.block].outputs[ref.port].unit
                   for ref in plan.requested}
     summary: dict[str, Any] = {

@@ -37,6 +37,7 @@ class OdeGroup:
         self.event_units = [u for u in units if u.continuous and u.n_events > 0]
         self.n_events = sum(u.n_events for u in self.event_units)
         self.needs_completed = [u for u in units if u.continuous and u.needs_completed_step]
+        self.discrete_units = [u for u in units if u.continuous and u.has_discrete_inputs]
         self.check_finite = check_finite
         self._ydot_type = c_double * self.n
         x0 = self._initial_states()
@@ -47,6 +48,14 @@ class OdeGroup:
                                   max_step=max_step, n_roots=self.n_events,
                                   roots=self._roots if self.n_events else None)
         self.rhs_calls = 0
+        self.terminated_by = ""  # the unit that asked to end the simulation (terminateSimulation)
+
+    def check_not_terminated(self, t: float, t_end: float | None = None) -> None:
+        """An FMU that asked to terminate (before t_end, if given) ends the run with a StepError,
+        as a co-simulation FMU's doStep does: the data up to t are kept, never called complete."""
+        if self.terminated_by and (t_end is None or t < t_end - 1e-12 * max(1.0, abs(t_end))):
+            raise StepError(self.terminated_by, t, "the FMU asked to terminate the simulation",
+                            function="event update", cause="the model reached the end of its validity")
 
     def _initial_states(self) -> list[float]:
         x = (c_double * self.n)()
@@ -135,29 +144,57 @@ class OdeGroup:
         return min(times) if times else math.inf
 
     def handle_event(self, t: float) -> bool:
-        """Event iteration at t on every event-capable unit; reinitialises CVODE. Returns terminate."""
+        """Event iteration at t; reinitialises CVODE. Returns terminate.
+
+        Every event-capable unit updates its discrete states first; then, in super-dense time,
+        units whose discrete inputs changed (a discrete output of another unit moved) enter
+        event mode again to take them, until nothing changes."""
         self.set_point(t, self.cv.y_address)
-        changed_any, terminate = False, False
-        for u in self.units:
-            if u.continuous and (u.n_events or u.next_time_event() is not None or u.needs_completed_step):
+        terminate = False
+        for round_ in range(100):
+            due = [u for u in self.units if u.continuous and (
+                u.discrete_inputs_changed() or (round_ == 0 and (u.n_events or u.next_time_event() is not None
+                                                                 or u.needs_completed_step)))]
+            if not due:
+                break
+            changed_any = False
+            for u in due:
                 changed, _next, term = u.event_update()
                 changed_any |= changed
+                if term and not terminate:
+                    self.terminated_by = u.name
                 terminate |= term
-        if changed_any:
-            for u, off in self.stateful:
-                u.get_states(self.cv.y_address + 8 * off)
-        self.set_point(t, self.cv.y_address)
+            if changed_any:
+                for u, off in self.stateful:
+                    u.get_states(self.cv.y_address + 8 * off)
+            self.set_point(t, self.cv.y_address)
+        else:
+            names = ", ".join(u.name for u in self.discrete_units if u.discrete_inputs_changed())
+            raise StepError(names or "master", t, "discrete inputs kept changing in 100 event iterations at one instant",
+                            function="event iteration", cause="a loop of discrete signals without a delay")
         self.cv.reinit(t)
         self.ctx.stats["events"] = self.ctx.stats.get("events", 0) + 1
         return terminate
 
+    def discrete_inputs_pending(self, t: float) -> bool:
+        """Sample the discrete inputs at t (a communication point): does one wait for event mode?"""
+        self.set_point(t, self.cv.y_address)
+        return any(u.discrete_inputs_changed() for u in self.discrete_units)
+
     def integrate(self, t_end: float, out_times: np.ndarray, on_output: Callable[[float], None]) -> float:
-        """Integrate to t_end, calling on_output(t) with every unit set at each output time."""
+        """Integrate to t_end, calling on_output(t) with every unit set at each output time.
+
+        Discrete inputs of Model Exchange FMUs are sampled at the output times and at events;
+        when one changed, the integration stops there and its FMU enters event mode to take it.
+        At an event time the recorded values are those after the event."""
         cv = self.cv
         k = 0
         n_out = len(out_times)
-        simple = not self.event_units and not self.needs_completed and self.next_time_event() == math.inf
+        sampled = bool(self.discrete_units)
+        simple = not self.event_units and not self.needs_completed and self.next_time_event() == math.inf and not sampled
         eps = 1e-12 * max(1.0, abs(t_end))
+        if sampled and self.discrete_inputs_pending(cv.t) and self.handle_event(cv.t):
+            return cv.t
         while k < n_out and out_times[k] <= cv.t + eps:
             self.set_point(out_times[k], cv.y_address)
             on_output(out_times[k])
@@ -176,23 +213,33 @@ class OdeGroup:
             return cv.t
         while cv.t < t_end - eps:
             t_stop = min(t_end, self.next_time_event())
+            if sampled and k < n_out:
+                t_stop = min(t_stop, out_times[k])
             cv.set_stop_time(t_stop)
             flag = cv.advance(t_stop, one_step=True)
             t_cur = cv.t
-            while k < n_out and out_times[k] <= t_cur + eps:
-                y = cv.interpolate(min(out_times[k], t_cur))
+            while k < n_out and out_times[k] < t_cur - eps:
+                y = cv.interpolate(out_times[k])
                 self.set_point(out_times[k], ctypes.addressof(y))
                 on_output(out_times[k])
                 k += 1
-            event = flag == 2 or (flag == 1 and t_stop < t_end and abs(t_cur - t_stop) <= eps)
+            event = flag == 2 or abs(t_cur - self.next_time_event()) <= eps
             if self.needs_completed and not event:
                 self.set_point(t_cur, cv.y_address)
                 for u in self.needs_completed:
                     enter, term = u.completed_integrator_step()
                     event |= enter
                     if term:
+                        self.terminated_by = u.name
                         return t_cur
-            if event and self.handle_event(t_cur):
+            if not event and sampled and abs(t_cur - t_stop) <= eps:
+                event = self.discrete_inputs_pending(t_cur)
+            terminate = event and self.handle_event(t_cur)
+            while k < n_out and out_times[k] <= t_cur + eps:
+                self.set_point(out_times[k], cv.y_address)
+                on_output(out_times[k])
+                k += 1
+            if terminate:
                 return t_cur
         self.set_point(cv.t, cv.y_address)
         return cv.t
@@ -280,7 +327,7 @@ def run_strong(ctx: RunContext, t0: float, t_end: float) -> None:
 
     t_wall = time.perf_counter()
     try:
-        group.integrate(t_end, out_times, on_output)
+        group.check_not_terminated(group.integrate(t_end, out_times, on_output), t_end)
     except CVodeError as exc:
         raise group.diagnose(exc) from None
     finally:

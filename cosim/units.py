@@ -40,6 +40,7 @@ class Unit:
     n_states = 0
     n_events = 0
     needs_completed_step = False
+    has_discrete_inputs = False  # ME FMUs: inputs settable in event mode only (cosim.strong)
 
     def __init__(self, name: str, input_names: Sequence[str], output_names: Sequence[str]) -> None:
         self.name = name
@@ -92,6 +93,10 @@ class Unit:
 
     def next_time_event(self) -> float | None:
         return None
+
+    def discrete_inputs_changed(self) -> bool:
+        """True when a discrete input's value in inbuf waits to be set in event mode (ME FMUs)."""
+        return False
 
     # CS
     def do_step(self, t: float, h: float) -> None:
