@@ -16,6 +16,7 @@ from typing import Sequence
 from fmu_src.errors import FeatherstarError
 
 from .bayes import DEFAULT_ITERATIONS
+from .cli_bench import add_bench_options, bench_optimize, check_bench_arguments
 from .codesign import MORPHOLOGY_VARIABLES, codesign
 from .errors import OptimizerError
 from .evaluation import MeasurementPlan
@@ -121,6 +122,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     opt.add_argument("--compare", type=Path, nargs="*", default=[], metavar="DIR",
                      help="other optimize output directories to draw in the same Fig. 8")
     _where(opt, batches=True)
+    add_bench_options(opt)
     opt.set_defaults(func=_optimize_command)
 
     sweep = subparsers.add_parser("sweep", help="morphology × controller grid sweep (paper Fig. 3)")
@@ -186,6 +188,12 @@ def _optimize_command(args: argparse.Namespace) -> int:
         if not path.exists():
             raise OptimizerError(f"--compare {directory}: no summary.json there")
         compare.append(json.loads(path.read_text()))
+    check_bench_arguments(args)
+    if args.hardware:
+        if args.scene.startswith(_SYNTHETIC_PREFIX):
+            raise OptimizerError(f"--hardware: {args.scene} is an analytic stand-in; give the scene the bench runs")
+        make_objective(args.scene, overrides)   # the same refusals as a simulated study (--set master.*)
+        return bench_optimize(args, space, overrides, tuple(compare))
     objective = make_objective(args.scene, overrides)
     print(f"optimizing {args.scene} ({args.objective} TR, {args.iterations} iterations) → {args.out}/evaluations.jsonl")
     try:

@@ -1,0 +1,139 @@
+"""The optimizer on the bench: studies against the Modbus emulator (a child process) on loopback.
+
+Short on purpose: strokes of 1 s, one measured period, no settling, 0.1 s rest; the flat-plate
+plant starts at once and needs no FMU.
+"""
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import threading
+
+import pytest
+
+from hil.emulator import spawn_emulator
+from optimizer.bench_objective import BenchObjective
+from optimizer.bench_run import BenchFault
+from optimizer.bench_study import run_bench_study
+from optimizer.cli import main as optimizer_main
+from optimizer.evaluation import MeasurementPlan
+from optimizer.loadcell import LoadCell
+from optimizer.space import stroke_space
+
+pytestmark = pytest.mark.hil
+
+PERIOD_S = 1.0
+SPACE = stroke_space(PERIOD_S)
+PLAN = MeasurementPlan(load_cell=LoadCell(noise_sd_N=0.0, sample_rate_hz=250.0), settle_periods=0, periods=1, seed=3)
+ITERATIONS = 4
+# Fail fast when the device is gone; recover from a brief stall (which then discards the run).
+OPTIONS = "&timeout_s=0.1&reconnect_s=2&start_retry_s=0.5"
+SERVO_OPTIONS = OPTIONS + "&safe_timeout_s=0.3"
+
+
+def _bench(emulator) -> BenchObjective:
+    return BenchObjective("testbed", {"servo": emulator.servo_url + SERVO_OPTIONS, "loadcell": emulator.loadcell_url + OPTIONS},
+                          {"feather.morphology": "plain"}, settle_periods=PLAN.settle_periods, rest_s=0.1)
+
+
+def _study(emulator, out, **kwargs):
+    return run_bench_study(_bench(emulator), SPACE, out, plan=PLAN, iterations=ITERATIONS, validation_repeats=2,
+                           validation_periods=1, label="plate", **kwargs)
+
+
+def _records(out):
+    return [json.loads(line) for line in (out / "evaluations.jsonl").read_text().splitlines()]
+
+
+def test_a_stalled_run_is_discarded_and_repeated_and_the_study_completes(tmp_path):
+    emulator = spawn_emulator(plant="flat-plate", noise_N=0.002, seed=1)
+    stalled = []
+
+    def stall_the_next_run(record):
+        # Freeze the device 0.5 s into the run after the second evaluation, for 0.4 s.
+        if record["kind"] == "evaluation" and record["index"] == 1 and not stalled:
+            stalled.append(True)
+            threading.Timer(0.6, os.kill, (emulator.proc.pid, signal.SIGSTOP)).start()
+            threading.Timer(1.0, os.kill, (emulator.proc.pid, signal.SIGCONT)).start()
+
+    try:
+        summary = _study(emulator, tmp_path, on_record=stall_the_next_run)
+    finally:
+        emulator.stop()
+    records = _records(tmp_path)
+    assert [r["index"] for r in records if r["kind"] == "evaluation"] == list(range(ITERATIONS))
+    discarded = [r for r in records if r["kind"] == "discarded"]
+    assert len(discarded) >= 1 and discarded[0]["index"] == 2, discarded
+    assert any("gap" in reason or "late" in reason for reason in discarded[0]["reasons"])
+    assert summary["measured"] is True and summary["discarded_runs"] == len(discarded)
+    assert summary["iterations"] == ITERATIONS
+    assert {r["controller"] for r in records if r["kind"] == "validation"} == {"best", "baseline"}
+    # A slow upstroke with a fast downstroke beats the symmetric stroke on a drag plate.
+    assert summary["thrust_ratio"] > summary["baseline_thrust_ratio"] - 0.05
+    assert (tmp_path / "fig6_progress.png").stat().st_size > 0 and (tmp_path / "fig8_validation.png").exists()
+
+
+def test_a_killed_device_pauses_the_study_and_resume_logs_every_evaluation_once(tmp_path):
+    emulator = spawn_emulator(plant="flat-plate", noise_N=0.002, seed=1)
+    port = emulator.port
+
+    def kill_during_the_third(record):
+        if record["kind"] == "evaluation" and record["index"] == 1:
+            threading.Timer(0.5, emulator.kill).start()   # 0.1 s rest, then mid-run
+
+    try:
+        with pytest.raises(BenchFault, match="study paused.*--resume"):
+            _study(emulator, tmp_path, on_record=kill_during_the_third)
+    finally:
+        emulator.stop()
+    paused = _records(tmp_path)
+    assert [r["index"] for r in paused if r["kind"] == "evaluation"] == [0, 1]
+    fault = next(r for r in paused if r["kind"] == "fault")
+    assert fault["index"] == 2
+
+    emulator = spawn_emulator(port=port, plant="flat-plate", noise_N=0.002, seed=2)
+    try:
+        summary = _study(emulator, tmp_path, resume=True)
+    finally:
+        emulator.stop()
+    records = _records(tmp_path)
+    assert records[: len(paused)] == paused   # nothing lost or rewritten
+    evaluations = [r for r in records if r["kind"] == "evaluation"]
+    assert [r["index"] for r in evaluations] == list(range(ITERATIONS))
+    assert evaluations[2]["params"] == fault["params"]   # the interrupted point, asked again
+    assert summary["faults"] == 1 and summary["iterations"] == ITERATIONS
+
+
+def test_cli_study_on_the_bench_writes_measured_outputs(tmp_path):
+    emulator = spawn_emulator(plant="flat-plate", noise_N=0.002, seed=1)
+    try:
+        done = subprocess.run(
+            [sys.executable, "-m", "cosim.cli", "optimize", "testbed", "--set", "feather.morphology=plain",
+             "--hardware", f"servo={emulator.servo_url}{SERVO_OPTIONS}", "--hardware", f"loadcell={emulator.loadcell_url}{OPTIONS}",
+             "--iterations", "4", "--period", "1", "--settle-periods", "0", "--periods", "1", "--rest-s", "0.1",
+             "--validation-repeats", "2", "--validation-periods", "1", "--out", str(tmp_path)],
+            capture_output=True, text=True, timeout=120)
+    finally:
+        emulator.stop()
+    assert done.returncode == 0, done.stderr
+    assert "ON THE BENCH" in done.stdout and "validated best" in done.stdout
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["measured"] is True and summary["iterations"] == 4
+    assert summary["measurement"]["noise_sd_N"] == 0.0
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--prior", "somewhere"], "--prior applies to a study on the bench"),
+    (["--hardware", "servo=modbus-tcp://127.0.0.1:1?unit=2"], "--hardware loadcell=URL is missing"),
+    (["--hardware", "servo=modbus-tcp://127.0.0.1:1?unit=2", "--hardware", "loadcell=modbus-tcp://127.0.0.1:1?unit=1",
+      "--batch-size", "2"], "one bench runs one stroke at a time"),
+    (["--hardware", "servo=modbus-tcp://127.0.0.1:1?unit=2&timeout_s=-1",
+      "--hardware", "loadcell=modbus-tcp://127.0.0.1:1?unit=1"], "timeout_s='-1' must be a positive number"),
+])
+def test_bad_bench_options_are_refused_in_one_line(tmp_path, capsys, args, message):
+    assert optimizer_main(["optimize", "testbed", "--out", str(tmp_path / "out"), *args]) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and len(err.splitlines()) == 1
