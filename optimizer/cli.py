@@ -17,6 +17,7 @@ from fmu_src.errors import FeatherstarError
 
 from .bayes import DEFAULT_ITERATIONS
 from .cli_bench import add_bench_options, bench_optimize, check_bench_arguments
+from .cli_calibrate import register_calibrate
 from .codesign import MORPHOLOGY_VARIABLES, codesign
 from .errors import OptimizerError
 from .evaluation import MeasurementPlan
@@ -106,7 +107,7 @@ def _batch_workers(args: argparse.Namespace) -> int:
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    """Add the optimize, sweep, codesign and paper subcommands; each sets `func`."""
+    """Add the optimize, sweep, codesign, calibrate and paper subcommands; each sets `func`."""
     opt = subparsers.add_parser("optimize", help="Bayesian optimization of the stroke (paper Sec. II-D)")
     _common(opt, default_noise_N=DEFAULT_NOISE_SD_N)
     opt.add_argument("--objective", choices=("max", "min"), default="max", help="best (max TR) or worst (min TR)")
@@ -145,6 +146,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     co.add_argument("--resume", action="store_true")
     _where(co, batches=True)
     co.set_defaults(func=_codesign_command)
+
+    register_calibrate(subparsers, _override)
 
     paper = subparsers.add_parser(
         "paper", help="rerun the paper's experiments; markdown report with Figs. 3, 5-9 and a claims table",
