@@ -15,12 +15,15 @@ import threading
 import pytest
 
 from hil.emulator import spawn_emulator
+from optimizer.bayes import optimize
 from optimizer.bench_objective import BenchObjective
 from optimizer.bench_run import BenchFault
 from optimizer.bench_study import run_bench_study
 from optimizer.cli import main as optimizer_main
 from optimizer.evaluation import MeasurementPlan
 from optimizer.loadcell import LoadCell
+from optimizer.objective import SceneObjective
+from optimizer.sim_prior import SimPrior
 from optimizer.space import stroke_space
 
 pytestmark = pytest.mark.hil
@@ -107,22 +110,33 @@ def test_a_killed_device_pauses_the_study_and_resume_logs_every_evaluation_once(
     assert summary["faults"] == 1 and summary["iterations"] == ITERATIONS
 
 
-def test_cli_study_on_the_bench_writes_measured_outputs(tmp_path):
+def test_cli_study_on_the_bench_with_a_simulated_prior_writes_measured_outputs(tmp_path):
+    # The prior: a short simulated study of the same feather and stroke period.
+    optimize(SceneObjective("testbed", {"feather.morphology": "plain"}), SPACE, tmp_path / "sim" / "evaluations.jsonl",
+             iterations=5, plan=MeasurementPlan(settle_periods=0, periods=1, seed=5),
+             context={"scene": "testbed", "overrides": {"feather.morphology": "plain"}})
+    prior = SimPrior.load(tmp_path / "sim", feather={"morphology": "plain"}, space=SPACE, maximize=True)
+    out = tmp_path / "bench"
     emulator = spawn_emulator(plant="flat-plate", noise_N=0.002, seed=1)
     try:
         done = subprocess.run(
             [sys.executable, "-m", "cosim.cli", "optimize", "testbed", "--set", "feather.morphology=plain",
              "--hardware", f"servo={emulator.servo_url}{SERVO_OPTIONS}", "--hardware", f"loadcell={emulator.loadcell_url}{OPTIONS}",
              "--iterations", "4", "--period", "1", "--settle-periods", "0", "--periods", "1", "--rest-s", "0.1",
-             "--validation-repeats", "2", "--validation-periods", "1", "--out", str(tmp_path)],
+             "--validation-repeats", "2", "--validation-periods", "1", "--out", str(out), "--prior", str(tmp_path / "sim")],
             capture_output=True, text=True, timeout=120)
     finally:
         emulator.stop()
     assert done.returncode == 0, done.stderr
     assert "ON THE BENCH" in done.stdout and "validated best" in done.stdout
-    summary = json.loads((tmp_path / "summary.json").read_text())
+    summary = json.loads((out / "summary.json").read_text())
     assert summary["measured"] is True and summary["iterations"] == 4
     assert summary["measurement"]["noise_sd_N"] == 0.0
+    assert summary["prior"]["evaluations"] == 5
+    # The initial design is the simulated study's best strokes, best first.
+    evaluations = [r for r in _records(out) if r["kind"] == "evaluation"]
+    assert [r["params"] for r in evaluations] == prior.initial_points(SPACE, 4, maximize=True)
+    assert all(r["from_prior"] for r in evaluations)
 
 
 @pytest.mark.parametrize("args, message", [
