@@ -7,7 +7,9 @@ close left it), then runs settling plus measured periods in real time through th
 - a step started more than `cosim.validity.MAX_LATE_S` (0.05 s) late (a stall), or
 - more than `cosim.validity.MAX_MISS_FRACTION` (10 %) of the steps missed their deadline, or
 - a device needed a recovery (a data gap) or reconnected, or
-- the master excluded a period of the measured window or called the run incomplete.
+- the master excluded a period of the measured window or called the run incomplete, or
+- the measured window has no negative thrust (TR infinite: the load cell tares at the start of
+  every run, so a feather still moving from the last run offsets the whole recording).
 
 This is stricter than `featherstar run`, which keeps a run with half its periods valid: the
 optimizer compares evaluations with each other, so every one must be measured over the same
@@ -56,6 +58,12 @@ def discard_reasons(run: BenchRun) -> list[str]:
     invalid = (s.get("validity") or {}).get("invalid_periods") or []
     if invalid:
         reasons.append(f"{len(invalid)} measured period(s) excluded: {invalid[0]['reasons'][0]}")
+    window = s.get("window_s")
+    if window and len(run.thrust_N):
+        inside = (run.time_s >= window[0]) & (run.time_s <= window[1])
+        if inside.any() and run.thrust_N[inside].min() >= 0:
+            reasons.append("no negative thrust in the measured window (TR infinite): a tare taken while the "
+                           "feather still moved? lengthen --rest-s")
     if not run.complete and not reasons:
         reasons.append(s.get("incomplete_reason", "the master marked the run incomplete"))
     return reasons

@@ -12,12 +12,13 @@ import subprocess
 import sys
 import threading
 
+import numpy as np
 import pytest
 
 from hil.emulator import spawn_emulator
 from optimizer.bayes import optimize
-from optimizer.bench_objective import BenchObjective
-from optimizer.bench_run import BenchFault
+from optimizer.bench_objective import BenchObjective, discard_reasons
+from optimizer.bench_run import BenchFault, BenchRun
 from optimizer.bench_study import run_bench_study
 from optimizer.cli import main as optimizer_main
 from optimizer.evaluation import MeasurementPlan
@@ -151,3 +152,26 @@ def test_bad_bench_options_are_refused_in_one_line(tmp_path, capsys, args, messa
     assert optimizer_main(["optimize", "testbed", "--out", str(tmp_path / "out"), *args]) == 2
     err = capsys.readouterr().err.strip()
     assert message in err and len(err.splitlines()) == 1
+
+
+def _run(thrust, **summary):
+    t = np.linspace(0.0, 2.0, 501)
+    base = {"worst_lateness_s": 0.0, "deadline_misses": 0, "gaps": 0, "reconnects": 0, "stats": {"macro_steps": 500},
+            "validity": {"invalid_periods": []}, "window_s": [1.0, 2.0]}
+    return BenchRun(t, thrust(t), np.zeros_like(t), {**base, **summary}, True)
+
+
+@pytest.mark.parametrize("summary, thrust, reason", [
+    ({}, lambda t: np.sin(2 * np.pi * t), None),
+    ({"worst_lateness_s": 0.06}, lambda t: np.sin(2 * np.pi * t), "0.060 s late (limit 0.05 s)"),
+    ({"deadline_misses": 51}, lambda t: np.sin(2 * np.pi * t), "51 of 500 steps missed their deadline"),
+    ({"deadline_misses": 50}, lambda t: np.sin(2 * np.pi * t), None),   # 10 % exactly: jitter, kept
+    ({"gaps": 1}, lambda t: np.sin(2 * np.pi * t), "1 data gap"),
+    ({"reconnects": 1}, lambda t: np.sin(2 * np.pi * t), "1 device reconnect"),
+    ({"validity": {"invalid_periods": [{"reasons": ["loadcell: data gap at t=1.2 s"]}]}}, lambda t: np.sin(2 * np.pi * t),
+     "1 measured period(s) excluded: loadcell: data gap"),
+    ({}, lambda t: 1.0 + np.sin(2 * np.pi * t) ** 2, "no negative thrust in the measured window"),
+])
+def test_which_runs_are_discarded(summary, thrust, reason):
+    reasons = discard_reasons(_run(thrust, **summary))
+    assert (reasons == []) if reason is None else any(reason in r for r in reasons), reasons
