@@ -52,6 +52,9 @@ class ResolvedBlock:
     fmu_info: Any = None
     obj: Any = None  # python block object (stroke, gain, python kinds)
     signals: tuple[PortRef, ...] = ()  # recorder
+    records_only: bool = False  # a recorder: names signals to record, computes nothing
+    can_rollback: bool = False  # its state can be saved and restored (the adaptive weak master rejects steps)
+    stroke: Any = None  # a stroke generator's Stroke (the period, the ramps the guards check)
     notes: list[str] = field(default_factory=list)
 
     @property
@@ -118,7 +121,8 @@ class StrokeKind(BlockKind):
             raise SceneError(str(exc)) from None
         obj = StrokeController(spec.name, stroke)
         return ResolvedBlock(spec, {}, dict(obj.outputs), memoryless=True, iterable=True, continuous=True,
-                             identity=("stroke", stroke), period_s=stroke.period_s, obj=obj)
+                             identity=("stroke", stroke), period_s=stroke.period_s, obj=obj, can_rollback=True,
+                             stroke=stroke)
 
 
 # --- recorder -----------------------------------------------------------------------------------
@@ -134,7 +138,8 @@ class RecorderKind(BlockKind):
         if isinstance(signals, str):
             signals = [s for s in signals.split(",") if s.strip()]
         refs = tuple(PortRef.parse(str(s), f"{_where(spec)} signal") for s in signals)
-        return ResolvedBlock(spec, {}, {}, memoryless=True, iterable=True, continuous=True, signals=refs)
+        return ResolvedBlock(spec, {}, {}, memoryless=True, iterable=True, continuous=True, signals=refs,
+                             records_only=True, can_rollback=True)
 
 
 # --- gain ---------------------------------------------------------------------------------------
@@ -187,7 +192,7 @@ class GainKind(BlockKind):
         obj = Gain(spec.name, **values)
         return ResolvedBlock(spec, dict(obj.inputs), dict(obj.outputs), memoryless=True,
                              iterable=obj.can_iterate, continuous=True,
-                             identity=("gain", tuple(sorted(values.items()))), obj=obj)
+                             identity=("gain", tuple(sorted(values.items()))), obj=obj, can_rollback=True)
 
 
 # --- constant -----------------------------------------------------------------------------------
@@ -215,6 +220,10 @@ class Constant:
 
     def get_outputs(self) -> dict[str, float]:
         return dict(self.values)
+
+    def set_output(self, name: str, value: float) -> None:
+        """A new value from outside the scene (Simulator.write): a command, the flow speed."""
+        self.values[name] = float(value)
 
     def do_step(self, t_s: float, h_s: float) -> None:
         pass
@@ -247,7 +256,7 @@ class ConstantKind(BlockKind):
             values[port] = (float(value), str(entry["unit"]))
         obj = Constant(spec.name, values)
         return ResolvedBlock(spec, {}, dict(obj.outputs), memoryless=True, iterable=True, continuous=True,
-                             identity=("constant", tuple(sorted(values.items()))), obj=obj)
+                             identity=("constant", tuple(sorted(values.items()))), obj=obj, can_rollback=True)
 
 
 # --- python -------------------------------------------------------------------------------------
@@ -294,7 +303,8 @@ class PythonKind(BlockKind):
         memoryless = isinstance(obj, MemorylessBlock)
         return ResolvedBlock(spec, dict(obj.inputs), dict(obj.outputs), memoryless=memoryless,
                              iterable=can_iterate(obj), continuous=memoryless, identity=None,
-                             period_s=getattr(obj, "period_s", None), obj=obj)
+                             period_s=getattr(obj, "period_s", None), obj=obj,
+                             can_rollback=memoryless or isinstance(obj, RollbackBlock))
 
 
 # --- fmu ----------------------------------------------------------------------------------------
@@ -399,7 +409,8 @@ class FmuKind(BlockKind):
         outputs = {v.name: Port(v.name, v.unit, v.description, feed[v.name]) for v in model.outputs}
         identity = ("model", model_ref, FrozenMap(options), FrozenMap(params))
         return ResolvedBlock(spec, inputs, outputs, iterable=True, continuous=True, identity=identity,
-                             model=model, parameters={k: float(v) for k, v in params.items()}, notes=notes)
+                             model=model, parameters={k: float(v) for k, v in params.items()}, notes=notes,
+                             can_rollback=True)
 
     def _resolve_file(self, spec: BlockSpec, fmu_ref: str) -> ResolvedBlock:
         from .fmu_block import read_fmu_info
@@ -421,7 +432,8 @@ class FmuKind(BlockKind):
                 raise SceneError(f"{_where(spec)}: parameter {key} = {value!r} is not a number")
         return ResolvedBlock(spec, dict(info.inputs), dict(info.outputs), iterable=True,
                              continuous=info.has_me, identity=("fmu", str(path.resolve()), FrozenMap(params)),
-                             parameters={k: float(v) for k, v in params.items()}, fmu_path=path, fmu_info=info)
+                             parameters={k: float(v) for k, v in params.items()}, fmu_path=path, fmu_info=info,
+                             can_rollback=info.can_get_set_state)
 
 
 KINDS: dict[str, BlockKind] = {k.name: k for k in (StrokeKind(), RecorderKind(), ConstantKind(), GainKind(), PythonKind(), FmuKind())}
@@ -435,11 +447,3 @@ def block_kind(kind: str, scene: str = "") -> BlockKind:
 
 def resolve(spec: BlockSpec) -> ResolvedBlock:
     return block_kind(spec.kind).resolve(spec)
-
-
-def is_rollback_capable(rb: ResolvedBlock) -> bool:
-    if rb.memoryless or rb.model is not None:
-        return True
-    if rb.fmu_info is not None:
-        return rb.fmu_info.can_get_set_state
-    return isinstance(rb.obj, RollbackBlock)

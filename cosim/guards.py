@@ -21,6 +21,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Sequence
 
 from .errors import StepError
+from .sccs import strongly_connected
 
 if TYPE_CHECKING:
     from .graph import Plan
@@ -47,22 +48,20 @@ def _shortest_ramp(plan: "Plan") -> tuple[float, str] | None:
     ramps = []
     for name in plan.instantiate:
         rb = plan.blocks[name]
-        stroke = getattr(rb.obj, "stroke", None)
-        if rb.spec.kind == "stroke" and stroke is not None:
+        stroke = rb.stroke
+        if stroke is not None:
             ramps += [(stroke.t_up_s, f"{name}.t_up_s"), (stroke.t_down_s, f"{name}.t_down_s")]
     return min(ramps) if ramps else None
 
 
 def feedback_loops(plan: "Plan") -> list[list[str]]:
     """Groups of instantiated blocks that feed each other (strongly connected, through any port)."""
-    from .graph import _tarjan
-
     edges: dict[str, list[str]] = {n: [] for n in plan.instantiate}
     for dst, src in plan.source_of.items():
         a, b = plan.canonical(src).block, plan.canonical(dst).block
         if a in edges and b in edges and a != b:
             edges[a].append(b)
-    return [sorted(c) for c in _tarjan(list(edges), edges) if len(c) > 1]
+    return [sorted(c) for c in strongly_connected(list(edges), edges) if len(c) > 1]
 
 
 def _fastest_time_constant(plan: "Plan", blocks: Sequence[str]) -> tuple[float, str] | None:
