@@ -31,7 +31,8 @@ from fmu_src.errors import FeatherstarError, ModelError
 from .block import Block, MemorylessBlock, Port, RollbackBlock, can_iterate
 from .controller import STROKE_KEYS, StrokeController, resolve_stroke
 from .errors import SceneError
-from .scene import BlockSpec, FrozenMap, PortRef, parse_value
+from .feedthrough import model_feedthrough
+from .specs import BlockSpec, FrozenMap, PortRef, parse_value
 
 
 @dataclass
@@ -330,20 +331,6 @@ def _model(model_ref: str, options: FrozenMap) -> Any:
     except ImportError as exc:  # pragma: no cover - the catalog ships with featherstar
         raise SceneError(f"model '{model_ref}': the model catalog is not available ({exc})") from None
     return build_model(model_ref, dict(options))
-
-
-def model_feedthrough(model: Any) -> dict[str, tuple[str, ...]]:
-    """For each output of a fmu_src Model, the inputs it depends on directly (exact sparsity)."""
-    import casadi as ca
-
-    if model.u.numel() == 0:
-        return {v.name: () for v in model.outputs}
-    sp = ca.jacobian(model.y, model.u).sparsity()
-    rows, cols = sp.get_triplet()
-    deps: dict[str, list[str]] = {v.name: [] for v in model.outputs}
-    for r, c in zip(rows, cols):
-        deps[model.outputs[r].name].append(model.inputs[c].name)
-    return {k: tuple(v) for k, v in deps.items()}
 
 
 class FmuKind(BlockKind):

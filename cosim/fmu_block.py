@@ -454,7 +454,7 @@ def model_fmu_info(model: Any, fmu_path: Path, block: str) -> FmuInfo:
     """FmuInfo of an FMU exported from a fmu_src Model; ports come from the model (exact
     feedthrough from CasADi) rather than from the XML, which may not list dependencies."""
     info = read_fmu_info(fmu_path, block)
-    from .blocks import model_feedthrough
+    from .feedthrough import model_feedthrough
 
     feed = model_feedthrough(model)
     info.outputs = {n: Port(p.name, p.unit, p.description, feed.get(n, p.depends_on)) for n, p in info.outputs.items()}
