@@ -16,7 +16,7 @@ _EXPORTS = {
     "FeatherstarError": "errors", "SceneError": "errors", "StepError": "errors",
     "Plan": "graph", "plan": "graph",
     "run_monolithic": "monolithic",
-    "RunResult": "run", "run_scene": "run",
+    "RunResult": "run", "run_scene": "run", "Simulator": "simulator",
     "MasterSpec": "scene", "MetricsSpec": "scene", "Scene": "scene", "list_scenes": "scene",
     "load_scene": "scene", "scene_from_dict": "scene",
 }
@@ -41,6 +41,7 @@ __all__ = [
     "RunResult",
     "Scene",
     "SceneError",
+    "Simulator",
     "StepError",
     "list_scenes",
     "load_scene",
