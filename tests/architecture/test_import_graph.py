@@ -128,3 +128,28 @@ def test_no_private_names_imported_from_other_modules():
     bad = [f"{module}:{line} imports {target}.{name}" for module, imps in imports.items()
            for target, name, line in imps if name.startswith("_") and target != module]
     assert not bad, "private names imported from another module:\n" + "\n".join(bad)
+
+
+#: The one-way doors of docs/architecture.md: which rooms each room may import.
+DOORS = {
+    "fmu_src": set(),
+    "cosim": {"fmu_src"},
+    "hil": {"cosim", "fmu_src"},
+    "optimizer": {"cosim", "fmu_src"},
+    "app": {"optimizer", "hil", "cosim", "fmu_src"},
+}
+
+
+def _room(module: str) -> str:
+    parts = module.split(".")
+    if parts[0] == "featherstar":
+        return parts[1] if len(parts) > 1 and parts[1] in PACKAGES else "app"
+    return parts[0]
+
+
+def test_packages_import_through_the_doors_only():
+    _, imports = _graph()
+    bad = sorted({f"{module}:{line} ({_room(module)}) imports {target} ({_room(target)})"
+                  for module, imps in imports.items() for target, _, line in imps
+                  if _room(target) != _room(module) and _room(target) not in DOORS[_room(module)]})
+    assert not bad, "imports against docs/architecture.md:\n" + "\n".join(bad)
