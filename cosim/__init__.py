@@ -26,7 +26,7 @@ def __getattr__(name: str) -> Any:
     # lazy: `import cosim.block` (hil, optimizer) must not pull in CasADi, fmpy and SUNDIALS
     if name in _EXPORTS:
         return getattr(importlib.import_module(f".{_EXPORTS[name]}", __name__), name)
-    raise AttributeError(f"module 'cosim' has no attribute '{name}'")
+    raise AttributeError(f"module '{__name__}' has no attribute '{name}'")
 
 
 __all__ = [

@@ -351,7 +351,7 @@ def scene_from_dict(data: Mapping[str, Any], *, name: str = "", source: str = ""
 
 
 def _shipped() -> dict[str, Path]:
-    folder = resources.files("cosim") / "scenes"
+    folder = resources.files(__package__) / "scenes"
     return {Path(str(p)).stem: Path(str(p)) for p in folder.iterdir() if str(p).endswith(".toml")}
 
 
