@@ -28,7 +28,7 @@ from typing import Any, Hashable, Mapping
 
 from fmu_src.errors import FeatherstarError, ModelError
 
-from .block import Block, MemorylessBlock, Port, RollbackBlock, can_iterate
+from .block import Block, MemorylessBlock, Passivity, Port, RollbackBlock, can_iterate, passivity_by_convention
 from .controller import STROKE_KEYS, StrokeController, resolve_stroke
 from .errors import SceneError
 from .feedthrough import model_feedthrough
@@ -56,6 +56,7 @@ class ResolvedBlock:
     records_only: bool = False  # a recorder: names signals to record, computes nothing
     can_rollback: bool = False  # its state can be saved and restored (the adaptive weak master rejects steps)
     stroke: Any = None  # a stroke generator's Stroke (the period, the ramps the guards check)
+    passivity: Passivity | None = None  # a passive block's energy output and power ports (the energy guard)
     notes: list[str] = field(default_factory=list)
 
     @property
@@ -305,7 +306,8 @@ class PythonKind(BlockKind):
         return ResolvedBlock(spec, dict(obj.inputs), dict(obj.outputs), memoryless=memoryless,
                              iterable=can_iterate(obj), continuous=memoryless, identity=None,
                              period_s=getattr(obj, "period_s", None), obj=obj,
-                             can_rollback=memoryless or isinstance(obj, RollbackBlock))
+                             can_rollback=memoryless or isinstance(obj, RollbackBlock),
+                             passivity=getattr(obj, "passivity", None))
 
 
 # --- fmu ----------------------------------------------------------------------------------------
@@ -397,7 +399,7 @@ class FmuKind(BlockKind):
         identity = ("model", model_ref, FrozenMap(options), FrozenMap(params))
         return ResolvedBlock(spec, inputs, outputs, iterable=True, continuous=True, identity=identity,
                              model=model, parameters={k: float(v) for k, v in params.items()}, notes=notes,
-                             can_rollback=True)
+                             can_rollback=True, passivity=passivity_by_convention(inputs, outputs))
 
     def _resolve_file(self, spec: BlockSpec, fmu_ref: str) -> ResolvedBlock:
         from .fmu_block import read_fmu_info
@@ -420,7 +422,8 @@ class FmuKind(BlockKind):
         return ResolvedBlock(spec, dict(info.inputs), dict(info.outputs), iterable=True,
                              continuous=info.has_me, identity=("fmu", str(path.resolve()), FrozenMap(params)),
                              parameters={k: float(v) for k, v in params.items()}, fmu_path=path, fmu_info=info,
-                             can_rollback=info.can_get_set_state)
+                             can_rollback=info.can_get_set_state,
+                             passivity=passivity_by_convention(info.inputs, info.outputs))
 
 
 KINDS: dict[str, BlockKind] = {k.name: k for k in (StrokeKind(), RecorderKind(), ConstantKind(), GainKind(), PythonKind(), FmuKind())}

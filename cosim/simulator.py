@@ -102,8 +102,8 @@ class Simulator:
             refs.append((self.units[block].outbuf, k))
             requested.append(plan.canonical(ref))
         # judged from one stroke period in (a tenth of the run without a stroke): see PassiveEnergyGuard
-        guards = passive_energy_guards(self.units, self.master.passive_energy_factor,
-                                       plan.period_s or 0.1 * plan.t_end_s)
+        guards = passive_energy_guards(self.units, {n: plan.blocks[n].passivity for n in self.units},
+                                       self.master.passive_energy_factor, plan.period_s or 0.1 * plan.t_end_s)
         self.recording = Recording(requested, refs, guards, keep_rows=record, progress=progress)
         self.coupling: StrongCoupling | WeakCoupling
         if self.master.coupling == "strong":
