@@ -60,7 +60,6 @@ class OdeGroup:
                                   rtol=rtol, atol=atol,
                                   max_step=max_step, n_roots=self.n_events,
                                   roots=self._roots if self.n_events else None)
-        self.rhs_calls = 0
 
     def _initial_states(self) -> list[float]:
         x = (c_double * self.n)()

@@ -17,7 +17,6 @@ FMUs are in cosim.fmu_block (the only module that calls fmpy).
 from __future__ import annotations
 
 import ctypes
-import math
 from ctypes import c_double
 from dataclasses import dataclass
 from typing import Any, Callable, Sequence
@@ -301,10 +300,3 @@ class ModelUnit(Unit):
         self.x[:] = x
         self.u[:] = u
         self._y_valid = False
-
-
-def all_finite(buf: ctypes.Array, n: int) -> bool:
-    s = 0.0
-    for i in range(n):
-        s += buf[i]
-    return math.isfinite(s)
