@@ -34,7 +34,7 @@ RESULTS = ROOT / "docs" / "results"
 
 
 def optimize(out: Path, iterations: int, seed: int, batch_size: int) -> dict[str, Any]:
-    command = [sys.executable, "-m", "cosim.cli", "optimize", "testbed", "--iterations", str(iterations),
+    command = [sys.executable, "-m", "featherstar", "optimize", "testbed", "--iterations", str(iterations),
                "--seed", str(seed), "--out", str(out)]
     if batch_size > 1:
         command += ["--batch-size", str(batch_size), "--workers", str(batch_size)]

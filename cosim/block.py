@@ -74,6 +74,34 @@ class RollbackBlock(Block, Protocol):
         """Return to a snapshot taken by get_state."""
 
 
+@dataclass(frozen=True)
+class Passivity:
+    """A passive block declares it: water and damping can only take energy out of it, so its
+    mechanical energy (output `energy_output`, J) may not grow by more than the work its power
+    ports put in. Each power port is an (effort output, flow input) pair whose product is the
+    power into the block: (torque N·m, rate rad/s) or (force N, velocity m/s). The passive-energy
+    guard (cosim.guards) judges every block that declares this."""
+
+    energy_output: str
+    power_ports: tuple[tuple[str, str], ...]
+
+
+#: featherstar's models report their energy here and pair `<x>_torque_Nm` outputs with
+#: `<x>_rate_rad_s` inputs (the actuator's torque and the rate it imposes).
+ENERGY_OUTPUT = "mechanical_energy_J"
+TORQUE_SUFFIX, RATE_SUFFIX = "_torque_Nm", "_rate_rad_s"
+
+
+def passivity_by_convention(inputs: Mapping[str, Port], outputs: Mapping[str, Port]) -> Passivity | None:
+    """The Passivity of a model that follows featherstar's port names (the one place they are read):
+    an energy output and at least one torque/rate pair."""
+    if ENERGY_OUTPUT not in outputs:
+        return None
+    pairs = tuple((out, out[: -len(TORQUE_SUFFIX)] + RATE_SUFFIX) for out in outputs
+                  if out.endswith(TORQUE_SUFFIX) and out[: -len(TORQUE_SUFFIX)] + RATE_SUFFIX in inputs)
+    return Passivity(ENERGY_OUTPUT, pairs) if pairs else None
+
+
 def can_iterate(block: object) -> bool:
     """True if the master may set trial inputs and read outputs again at the same instant (needed
     to solve an algebraic loop through the block). Memoryless blocks can; other blocks say so with

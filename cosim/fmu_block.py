@@ -29,7 +29,7 @@ from .block import Port
 from .errors import StepError
 from .fmu_info import FmuInfo, read_fmu_info
 from .fmu_values import TypedAccess, TypedPorts
-from .units import Unit
+from .units import FastPath, Unit
 
 STATUS = ["ok", "warning", "discard", "error", "fatal", "pending"]
 
@@ -315,6 +315,27 @@ class FmuUnit(Unit):
         if status > 1:
             raise self._fail("GetContinuousStateDerivatives" if self.fmi3 else "GetDerivatives", self.t, status)
 
+    def fast_path(self) -> FastPath:
+        """The ME calls on the raw FMI entry points (fmpy's wrappers cost several µs per call); a
+        bad status goes through the normal method, which raises the StepError."""
+        if self.mode != "me":
+            return super().fast_path()
+        inst, set_time, set_x, get_dx, n = self._inst, self._set_time, self._set_x, self._get_dx, self.n_states
+
+        def fast_set_time(t: float) -> None:
+            self.t = t
+            if set_time(inst, t) > 1:
+                self.set_time(t)
+
+        def fast_set_states(address: int) -> None:
+            if set_x(inst, address, n) > 1:
+                self.set_states(address)
+
+        def fast_get_derivatives(address: int) -> None:
+            if get_dx(inst, address, n) > 1:
+                self.get_derivatives(address)
+        return FastPath(fast_set_time, fast_set_states, fast_get_derivatives)
+
     def state_names(self) -> list[str]:
         return list(self.info.state_names)
 
@@ -434,7 +455,7 @@ def model_fmu_info(model: Any, fmu_path: Path, block: str) -> FmuInfo:
     """FmuInfo of an FMU exported from a fmu_src Model; ports come from the model (exact
     feedthrough from CasADi) rather than from the XML, which may not list dependencies."""
     info = read_fmu_info(fmu_path, block)
-    from .blocks import model_feedthrough
+    from .feedthrough import model_feedthrough
 
     feed = model_feedthrough(model)
     info.outputs = {n: Port(p.name, p.unit, p.description, feed.get(n, p.depends_on)) for n, p in info.outputs.items()}

@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 from typing import TYPE_CHECKING, Iterable
 
+from .block import passivity_by_convention
 from .blocks import ResolvedBlock
 from .scene import Connection, PortRef
 
@@ -56,10 +57,12 @@ def hold_unconnected_inputs(rb: ResolvedBlock, dangling: set[str]) -> None:
     rb.outputs = {k: dataclasses.replace(v, depends_on=tuple(d for d in v.depends_on if d not in dangling))
                   for k, v in rb.outputs.items()}
     rb.fmu_info = dataclasses.replace(rb.fmu_info, inputs=dict(rb.inputs), outputs=dict(rb.outputs))
+    rb.passivity = passivity_by_convention(rb.inputs, rb.outputs)  # power ports it still has
 
 
 def keep_used_outputs(p: "Plan") -> None:
-    """An FMU file's outputs that nothing reads are never evaluated (whatever their type)."""
+    """An FMU file's outputs that nothing reads are never evaluated (whatever their type); the
+    passive-energy guard reads a passive block's energy and power-port outputs (cosim.guards)."""
     used: dict[str, set[str]] = {}
     for dst, src in p.source_of.items():
         if p.alias_of.get(dst.block) == dst.block:
@@ -72,4 +75,6 @@ def keep_used_outputs(p: "Plan") -> None:
         rb = p.blocks[name]
         if rb.fmu_info is not None and rb.model is None:
             keep = used.get(name, set())
+            if rb.passivity is not None and p.scene.master.passive_energy_factor > 0:
+                keep = keep | {rb.passivity.energy_output, *(out for out, _ in rb.passivity.power_ports)}
             rb.fmu_info = dataclasses.replace(rb.fmu_info, outputs={k: v for k, v in rb.outputs.items() if k in keep})

@@ -3,11 +3,12 @@ paper's Fig. 5 (thrust with the root angle, integrated thrust, thrust ratio per 
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from .jsonable import json_safe
 
 SUMMARY_ROWS = (
     ("thrust_ratio", "thrust ratio TR (Eq. 3)", "{:.4f}", 1.0, ""),
@@ -68,19 +69,6 @@ def _realtime_lines(summary: dict[str, Any]) -> list[str]:
     return lines
 
 
-def _jsonable(v: Any) -> Any:
-    if isinstance(v, dict):
-        return {str(k): _jsonable(x) for k, x in v.items()}
-    if isinstance(v, (list, tuple)):
-        return [_jsonable(x) for x in v]
-    if isinstance(v, (np.floating, float)):
-        f = float(v)
-        return f if math.isfinite(f) else str(f)
-    if isinstance(v, np.integer):
-        return int(v)
-    return v
-
-
 def write_outputs(result: Any, out_dir: str | Path, *, figure: bool = True) -> dict[str, Path]:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -89,7 +77,7 @@ def write_outputs(result: Any, out_dir: str | Path, *, figure: bool = True) -> d
     payload["complete"] = result.complete
     payload["info"] = result.info
     payload["scene_definition"] = result.scene.to_dict()
-    paths["summary"].write_text(json.dumps(_jsonable(payload), indent=2) + "\n")
+    paths["summary"].write_text(json.dumps(json_safe(payload), indent=2, allow_nan=False) + "\n")
     names = list(result.signals)
     header = ",".join(["time [s]"] + [f"{n} [{result.units.get(n, '')}]" for n in names])
     columns = [result.time] + [result.signals[n] for n in names]

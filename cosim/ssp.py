@@ -1,4 +1,5 @@
-"""An SSP 1.0 package (.ssp) -> a Scene: `load_ssp(path)`, used by `load_scene` for .ssp files.
+"""An SSP 1.0 package (.ssp) -> scene data: `read_ssp(path)`, which `load_scene` turns into a Scene
+for .ssp files (this module does not import cosim.scene: the door opens one way).
 
 What is mapped: the system's ssd:Components of type application/x-fmu-sharedlibrary (FMI 2.0
 or 3.0 FMUs in the package) become `fmu` blocks; ssd:Connections between their connectors
@@ -27,7 +28,6 @@ from pathlib import Path, PurePosixPath
 from typing import Any
 
 from .errors import SceneError
-from .scene import Scene, scene_from_dict
 
 NS = {
     "ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
@@ -65,8 +65,9 @@ def is_ssp(path: str | Path) -> bool:
     return str(path).lower().endswith(".ssp")
 
 
-def load_ssp(path: str | Path) -> Scene:
-    """The scene an SSP package describes. Raises SceneError naming what cannot be mapped."""
+def read_ssp(path: str | Path) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The scene an SSP package describes, as scene data (cosim.scene.scene_from_dict) and the
+    overrides its parameter bindings make. Raises SceneError naming what cannot be mapped."""
     path = Path(path)
     where = f"SSP package '{path}'"
     if not path.is_file():
@@ -83,8 +84,7 @@ def load_ssp(path: str | Path) -> Scene:
     data, overrides = reader.read(root)
     if reader.problems:
         raise SceneError(reader.problems, data.get("name", path.stem))
-    scene = scene_from_dict(data, name=path.stem, source=str(path))
-    return scene.with_overrides(overrides)
+    return data, overrides
 
 
 def _unpack(path: Path, where: str) -> Path:

@@ -1,6 +1,6 @@
 """`featherstar build [MODEL ...] [--fmi {2,3}] [--out DIR] [--force]`: the catalog's models as FMUs.
 
-The `featherstar` entry point (cosim.cli) owns the parser; this module only adds its
+The `featherstar` entry point (featherstar.app) owns the parser; this module only adds its
 subcommand, so that building FMUs needs nothing from cosim.
 """
 from __future__ import annotations

@@ -215,10 +215,11 @@ def _export_sources(model: Model, identifier: str, work: Path) -> dict[str, str]
         "parameters": [[p.name, p.default] for p in model.parameters],
         "outputs": [v.name for v in model.outputs],
     }
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join(
-        filter(None, [str(Path(__file__).parents[1]), os.environ.get("PYTHONPATH")])))
+    # the child imports this module by its full name: put the folder holding its top package on the path
+    top = Path(__file__).parents[__name__.count(".")]
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(top), os.environ.get("PYTHONPATH")])))
     result = subprocess.run(
-        [sys.executable, "-c", "from fmu_src.export import _export_worker; _export_worker()"],
+        [sys.executable, "-c", f"from {__name__} import _export_worker; _export_worker()"],
         input=json.dumps(spec), capture_output=True, text=True, cwd=work, env=env,
     )
     if result.returncode != 0:

@@ -1,6 +1,6 @@
 """`featherstar emulate`: the bench emulator on the command line.
 
-`cosim.cli:main` calls `register(subparsers)` and dispatches `args.func(args)`; `python -m hil`
+`featherstar.app:main` calls `register(subparsers)` and dispatches `args.func(args)`; `python -m hil`
 offers the same commands without the rest of featherstar.
 """
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """One stroke on the bench: the only place the optimizer calls the master with hardware.
 
 `run_on_bench` runs a scene with its servo and load cell swapped for devices (as
-`featherstar run --hardware` does: `cosim.hardware.with_hardware` + `cosim.run_scene`) and
+`featherstar run --hardware` does: `hil.hardware.with_hardware` + `cosim.run_scene`) and
 returns what the bench recorded and the master's verdict on it. Everything hardware-facing in
 the optimizer (the bench study, calibration recordings, the bench in bench/) goes through this
 function, so moving to another way of stepping the master changes this module only.
@@ -15,7 +15,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from cosim.errors import StepError
-from cosim.hardware import LOADCELL_BLOCK, parse_hardware, with_hardware
+from hil.hardware import LOADCELL_BLOCK, parse_hardware, with_hardware
 from cosim.run import run_scene
 from cosim.scene import load_scene
 

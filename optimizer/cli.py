@@ -1,6 +1,6 @@
 """`featherstar optimize | sweep | codesign | paper`: thin wrappers over the library.
 
-`register(subparsers)` is called by the `featherstar` entry point (cosim.cli); `main()` runs the same
+`register(subparsers)` is called by the `featherstar` entry point (featherstar.app); `main()` runs the same
 commands standalone (`python -m optimizer.cli ...`). SCENE is a cosim scene name or path, or
 `synthetic:MORPHOLOGY` for the analytic stand-in (optimizer.synthetic), which needs no FMU.
 """

@@ -10,7 +10,7 @@ import json
 import sys
 from pathlib import Path
 
-from cosim.hardware import parse_hardware, split_url
+from hil.hardware import parse_hardware, split_url
 
 from .bench_objective import DEFAULT_MAX_ATTEMPTS, DEFAULT_REST_S, BenchObjective
 from .bench_run import BenchFault
@@ -21,7 +21,7 @@ from .loadcell import DEFAULT_NOISE_SD_N, LoadCell
 from .sim_prior import SimPrior, study_morphology
 from .space import SearchSpace
 
-# The hardware loop runs at 250 Hz (cosim.hardware.with_hardware's step): one load-cell
+# The hardware loop runs at 250 Hz (hil.hardware.with_hardware's step): one load-cell
 # sample per step, read as recorded.
 BENCH_SAMPLE_RATE_HZ = 250.0
 

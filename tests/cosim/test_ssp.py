@@ -13,7 +13,7 @@ from fmpy import read_model_description
 from fmpy.validation import validate_fmu
 
 from conftest import OSCILLATOR, make_scene
-from cosim.cli import main
+from featherstar.app import main
 from cosim.errors import SceneError
 from cosim.run import run_scene
 from cosim.scene import load_scene

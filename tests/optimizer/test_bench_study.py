@@ -121,7 +121,7 @@ def test_cli_study_on_the_bench_with_a_simulated_prior_writes_measured_outputs(t
     emulator = spawn_emulator(plant="flat-plate", noise_N=0.002, seed=1)
     try:
         done = subprocess.run(
-            [sys.executable, "-m", "cosim.cli", "optimize", "testbed", "--set", "feather.morphology=plain",
+            [sys.executable, "-m", "featherstar", "optimize", "testbed", "--set", "feather.morphology=plain",
              "--hardware", f"servo={emulator.servo_url}{SERVO_OPTIONS}", "--hardware", f"loadcell={emulator.loadcell_url}{OPTIONS}",
              "--iterations", "4", "--period", "1", "--settle-periods", "0", "--periods", "1", "--rest-s", "0.1",
              "--validation-repeats", "2", "--validation-periods", "1", "--out", str(out), "--prior", str(tmp_path / "sim")],

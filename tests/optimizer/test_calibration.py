@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from cosim.errors import StepError
-from cosim.hardware import with_hardware
+from hil.hardware import with_hardware
 from cosim.report import write_outputs
 from cosim.run import run_scene
 from cosim.scene import load_scene
