@@ -279,6 +279,8 @@ def plot(result: dict[str, Any], path: Path) -> None:
     ax_run.set(xlabel="units N", ylabel="wall s", title="6 periods, kinematic scene, FMU master")
     ax_build.set(xlabel="units N", ylabel="build s (cold)", title="FMU build time")
     for ax in (ax_rhs, ax_run, ax_build):
+        ax.set_xticks(sizes, [str(n) for n in sizes])
+        ax.minorticks_off()
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7)
     fig.tight_layout()

@@ -63,7 +63,11 @@ def plot(result: dict[str, Any], path: Path) -> None:
     ax_time.axhline(60, color="0.4", ls=":", label="goal 60 s")
     ax_time.set(xlabel="seed", ylabel="wall s", title=f"{result['iterations']} iterations, testbed")
     ax_tr.set(xlabel="seed", ylabel="validated best TR", title="best TR found")
+    trs = [r["best_thrust_ratio"] for rows in result["runs"].values() for r in rows]
+    ax_tr.set_ylim(min(trs) - 0.1, max(trs) + 0.1)
+    seeds = sorted({r["seed"] for rows in result["runs"].values() for r in rows})
     for ax in (ax_time, ax_tr):
+        ax.set_xticks([s + 0.175 for s in seeds], [str(s) for s in seeds])
         ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=120)

@@ -172,51 +172,40 @@ def solve_chain(
     tip = (origin_x + links[-1].length_m * cos_abs, origin_y + links[-1].length_m * sin_abs)
 
     # Inward: each subtree's articulated inertia and bias wrench about its link's origin. A child's
-    # origin acceleration in its own frame is X·A_parent + offset_accel + (q̈, 0, 0), with
-    # X = [[1, 0, 0], [sq L, cq, sq], [cq L, −sq, cq]].
+    # origin acceleration in its own frame is X·A_parent + offset_accel + (q̈, 0, 0).
     art_inertia, art_bias = list(inertias), list(biases)
-    pivots = [None] * n_links
+    transforms: list[tuple[ca.SX, ca.SX]] = []
+    for cq, sq, length, centripetal in joints:
+        X = ca.SX(3, 3)
+        X[0, 0] = 1
+        X[1, 0], X[1, 1], X[1, 2] = sq * length, cq, sq
+        X[2, 0], X[2, 1], X[2, 2] = cq * length, -sq, cq
+        transforms.append((X, _vec(0, -cq * centripetal, sq * centripetal)))
     for k in range(n_links - 1, 0, -1):
-        cq, sq, length, centripetal = joints[k - 1]
+        X, offset_accel = transforms[k - 1]
         ia, pa = art_inertia[k], art_bias[k]
-        inverse = 1 / ia[0, 0]
-        pivots[k] = inverse
-        free = (pa[0] + motion.joint_torques[k - 1]) * inverse
-        # With q̈ eliminated the subtree passes no moment about its joint but the joint's own
-        # torque: the first row and column of its reduced inertia vanish, leaving a 2×2 block.
-        k11 = ia[1, 1] - ia[0, 1] ** 2 * inverse
-        k12 = ia[1, 2] - ia[0, 1] * ia[0, 2] * inverse
-        k22 = ia[2, 2] - ia[0, 2] ** 2 * inverse
-        f1 = pa[1] - ia[0, 1] * free - k11 * cq * centripetal + k12 * sq * centripetal
-        f2 = pa[2] - ia[0, 2] * free - k12 * cq * centripetal + k22 * sq * centripetal
-        # Into the parent's frame: rotate by q, then move the moment's reference back along L.
-        r11 = cq * (cq * k11 - sq * k12) - sq * (cq * k12 - sq * k22)
-        r12 = sq * (cq * k11 - sq * k12) + cq * (cq * k12 - sq * k22)
-        r22 = sq * (sq * k11 + cq * k12) + cq * (sq * k12 + cq * k22)
-        g1, g2 = cq * f1 - sq * f2, sq * f1 + cq * f2
-        art_inertia[k - 1] = art_inertia[k - 1] + ca.blockcat([
-            [length**2 * r22, length * r12, length * r22],
-            [length * r12, r11, r12],
-            [length * r22, r12, r22]])
-        art_bias[k - 1] = art_bias[k - 1] + _vec(-motion.joint_torques[k - 1] + length * g2, g1, g2)
+        column = ia[:, 0]
+        free = pa[0] + motion.joint_torques[k - 1]
+        reduced = ia - column @ column.T / ia[0, 0]
+        passed = pa + reduced @ offset_accel - column * (free / ia[0, 0])
+        art_inertia[k - 1] = art_inertia[k - 1] + X.T @ reduced @ X
+        art_bias[k - 1] = art_bias[k - 1] + X.T @ passed
 
     # Outward: accelerations. The root link turns about the fixed root.
-    alpha, acc_along, acc_normal = motion.root_accel, ca.SX(0), ca.SX(0)
-    root_wrench = art_inertia[0] @ _vec(alpha, 0, 0) + art_bias[0]
+    accel = _vec(motion.root_accel, 0, 0)
+    root_wrench = art_inertia[0] @ accel + art_bias[0]
     joint_accels, fold_accels = [], []
     for j in range(n_links):
         if j > 0:
-            cq, sq, length, centripetal = joints[j - 1]
-            along, normal = acc_along - centripetal, acc_normal + alpha * length
-            acc_along, acc_normal = cq * along + sq * normal, -sq * along + cq * normal
+            X, offset_accel = transforms[j - 1]
+            accel = X @ accel + offset_accel
             ia = art_inertia[j]
-            qdd = -(art_bias[j][0] + motion.joint_torques[j - 1] + ia[0, 0] * alpha + ia[0, 1] * acc_along
-                    + ia[0, 2] * acc_normal) * pivots[j]
+            qdd = -(art_bias[j][0] + motion.joint_torques[j - 1] + ca.dot(ia[:, 0], accel)) / ia[0, 0]
             joint_accels.append(qdd)
-            alpha = alpha + qdd
+            accel = accel + _vec(qdd, 0, 0)
         if j in flap_terms:
             fold_inertia, coupling, fold_free = flap_terms[j]
-            fold_accels.append(-(fold_free + ca.dot(coupling, _vec(alpha, acc_along, acc_normal))) / fold_inertia)
+            fold_accels.append(-(fold_free + ca.dot(coupling, accel)) / fold_inertia)
 
     # Σ_p F_p is the force the root exerts on the feather; less the drag and the (tared) static
     # buoyancy it is −Σ_p d/dt(momentum + fluid impulse)_p, which the load cell adds to the drag.
