@@ -80,7 +80,8 @@ def test_the_fmus_own_log_line_is_in_the_error(c_fmu, version, coupling):
 def test_a_model_exchange_fmu_under_gauss_seidel_is_as_accurate_as_under_strong_coupling(c_fmu, version):
     """An ME-only FMU stepped by the weak master is integrated by CVODE with its error control
     intact from one macro step to the next: at the same rtol its error is within 10x of strong
-    coupling's (it was 50-160x before CVODE kept its history across macro steps)."""
+    coupling's (it was 19-161x before CVODE kept its history across macro steps;
+    bench/me_weak_accuracy.py)."""
     fmu = c_fmu("vdp", version)
     t_end = 10.0
     ref = solve_ivp(lambda t, x: [x[1], (1 - x[0] ** 2) * x[1] - x[0]], (0, t_end), [2.0, 0.0],
