@@ -77,7 +77,8 @@ def read_fmu_info(path: Path, block: str = "") -> FmuInfo:
         if ptype is None:  # a Clock: not a port; nobody can connect it, so it blocks nothing
             continue
         shape = tuple(getattr(var, "shape", None) or ())
-        discrete = var.variability in ("discrete", "fixed", "tunable", "constant")
+        # only real variables can be continuous (FMI 2.0 and 3.0), whatever a file declares
+        discrete = var.variability in ("discrete", "fixed", "tunable", "constant") or not ptype.startswith("Float")
         if var.causality == "parameter":
             if var.variability in ("fixed", "tunable") and not shape:
                 params[var.name] = var.valueReference

@@ -111,6 +111,7 @@ class WeakCoupling:
         self.m = system.master
         self.units = list(system.units.values())
         self.steppers: dict[str, Any] = {}
+        self.takes_discrete: list[MeStepper] = []
         self.check = system.output_checker(self.units)
         self.t = 0.0
         self.n_steps = self.n_rejected = 0
@@ -122,6 +123,8 @@ class WeakCoupling:
                 continue
             self.steppers[u.name] = (MeStepper(system, context, u, t0, m.method, m.rtol, m.atol)
                                      if u.continuous else u)
+        self.takes_discrete = [s for s in self.steppers.values()
+                               if isinstance(s, MeStepper) and s.unit.has_discrete_inputs]
         self.sched = topo_schedule(system, context, units, watched_out_nodes(system, self.recording))
         # Gauss–Seidel order: signal flow, sources first
         self.flow = system.flow_order(units)
@@ -142,11 +145,22 @@ class WeakCoupling:
         self.estimated = {u.name: continuous_inputs(system, u) for u in self.stepped}
 
     def consistent(self, t: float) -> None:
-        self.context.t = t
-        for u in self.memoryless:
-            u.set_time(t)
-        for op in self.sched:
-            op()
+        """Every input and output at t; ME units take changed discrete inputs in event mode there
+        (and the others see what that changes), so recorded values are those after the event."""
+        for _ in range(100):
+            self.context.t = t
+            for u in self.memoryless:
+                u.set_time(t)
+            for op in self.sched:
+                op()
+            pending = [s for s in self.takes_discrete if s.unit.discrete_inputs_changed()]
+            if not pending:
+                return
+            for s in pending:
+                s.group.handle_event(t)
+        raise StepError(",".join(s.unit.name for s in pending), t, "discrete inputs kept changing in 100 event "
+                        "iterations at one communication point", function="event iteration",
+                        cause="a loop of discrete signals without a delay")
 
     def input_changed(self, t: float) -> None:
         """An input written from outside: the communication point's values follow it."""

@@ -80,7 +80,8 @@ def test_the_fmus_own_log_line_is_in_the_error(c_fmu, version, coupling):
 def test_a_model_exchange_fmu_under_gauss_seidel_is_as_accurate_as_under_strong_coupling(c_fmu, version):
     """An ME-only FMU stepped by the weak master is integrated by CVODE with its error control
     intact from one macro step to the next: at the same rtol its error is within 10x of strong
-    coupling's (it was 50-160x before CVODE kept its history across macro steps)."""
+    coupling's (it was 19-161x before CVODE kept its history across macro steps;
+    bench/me_weak_accuracy.py)."""
     fmu = c_fmu("vdp", version)
     t_end = 10.0
     ref = solve_ivp(lambda t, x: [x[1], (1 - x[0] ** 2) * x[1] - x[0]], (0, t_end), [2.0, 0.0],
@@ -175,3 +176,22 @@ def test_state_events_are_located_exactly(c_fmu, version, coupling):
     assert np.max(np.abs(result["ball.h"] - h)) < 1e-6
     near_impact = np.abs(result.time[:, None] - np.array([0.4515, 1.0834, 1.5260])[None, :]).min(axis=1) < 1e-3
     assert np.array_equal(result["ball.bounces"][~near_impact], count[~near_impact])
+
+
+@pytest.mark.parametrize("coupling", ["strong", "jacobi"])
+def test_outputs_recorded_at_an_event_are_consistent_with_the_discrete_inputs_taken_there(c_fmu, coupling):
+    """The counter drives a discrete Int32 input of a Model Exchange FMU that passes it through
+    (+ 10): what is recorded at t0 and at each event already includes the input taken there in
+    event mode, under weak coupling as under strong."""
+    types = c_fmu("types", 3)
+    scene = scene_from_dict({
+        "name": "chain", "connections": ["clock.counter -> pass.Int32_input"],
+        "master": {"coupling": coupling, "t_end_s": 0.6, "step_s": 0.05, "output_interval_s": 0.05},
+        "blocks": {"clock": {"kind": "fmu", "fmu": str(c_fmu("events", 3)), "interface": "me"},
+                   "pass": {"kind": "fmu", "fmu": str(types), "interface": "me",
+                            "parameters": {"Int32_parameter": 10}},
+                   "rec": {"kind": "recorder", "signals": ["clock.counter", "pass.Int32_output"]}},
+    })
+    result = run_scene(scene)
+    assert np.array_equal(result["pass.Int32_output"], result["clock.counter"] + 10)
+    assert result["clock.counter"][-1] == 2

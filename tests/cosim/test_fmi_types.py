@@ -184,3 +184,19 @@ def test_results_csv_writes_every_type_in_full(c_fmu, tmp_path):
     assert int(row["b.Int64_output"]) == -(2 ** 53) + 3 + 1
     assert row["b.Boolean_output"] == "1" and row["b.String_output"] == "p:hello, "
     assert row["b.Binary_output"] == "00c0ffee00" and float(row["b.Float64_output"]) == -2.75 + 0.25
+
+
+def test_the_interface_key_is_checked(c_fmu):
+    vdp = c_fmu("vdp", 3)
+    base = {"name": "iface", "connections": [], "master": {"coupling": "jacobi", "t_end_s": 0.1, "step_s": 0.01},
+            "blocks": {"v": {"kind": "fmu", "fmu": str(vdp)}, "rec": {"kind": "recorder", "signals": ["v.x0"]}}}
+    for value, words in [("cs", "has no Co-Simulation interface"), ("both", "use \"me\"")]:
+        data = {**base, "blocks": {**base["blocks"], "v": {"kind": "fmu", "fmu": str(vdp), "interface": value}}}
+        with pytest.raises(SceneError, match=words):
+            plan(scene_from_dict(data))
+    events = c_fmu("events", 2)
+    strong_cs = {**base, "master": {"coupling": "strong", "t_end_s": 0.1},
+                 "blocks": {"v": {"kind": "fmu", "fmu": str(events), "interface": "cs"},
+                            "rec": {"kind": "recorder", "signals": ["v.x"]}}}
+    with pytest.raises(SceneError, match="co-simulation-only FMU"):
+        plan(scene_from_dict(strong_cs))
