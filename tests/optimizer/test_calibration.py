@@ -50,15 +50,18 @@ def _as_bench_run(result):
 
 def _record(emulator, out, overrides, attempts=5):
     """A clean recording (a loaded machine may stall a run: repeat it, as the bench study does)."""
+    reasons = []
     for _ in range(attempts):
         try:
             result = run_scene(with_hardware(load_scene("testbed"), _urls(emulator)), overrides)
-        except StepError:
+        except StepError as exc:
+            reasons = [str(exc)]
             continue
-        if result.complete and not discard_reasons(_as_bench_run(result)):
+        reasons = discard_reasons(_as_bench_run(result))
+        if result.complete and not reasons:
             write_outputs(result, out, figure=False)
             return out
-    pytest.skip("the machine is too loaded to record a clean real-time run")
+    pytest.skip(f"the machine is too loaded to record a clean real-time run ({'; '.join(reasons)[:200]})")
 
 
 def test_calibration_recovers_hidden_coefficients_and_predicts_an_unseen_stroke(tmp_path):
