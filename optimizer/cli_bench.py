@@ -10,7 +10,8 @@ import json
 import sys
 from pathlib import Path
 
-from hil.hardware import parse_hardware, split_url
+from cosim.scene import load_scene
+from hil.hardware import parse_hardware, split_url, with_hardware
 
 from .bench_objective import DEFAULT_MAX_ATTEMPTS, DEFAULT_REST_S, BenchObjective
 from .bench_run import BenchFault
@@ -75,6 +76,7 @@ def bench_optimize(args: argparse.Namespace, space: SearchSpace, overrides: dict
         if slot not in hardware:
             raise OptimizerError(f"--hardware {slot}=URL is missing: a bench study needs both the servo and the load cell")
         split_url(slot, hardware[slot])   # bad block options stop here, not after the first rest
+    with_hardware(load_scene(args.scene), hardware)   # a scene without a servo to replace, too
     bench = BenchObjective(args.scene, hardware, overrides, settle_periods=args.settle_periods, rest_s=args.rest_s)
     plan = MeasurementPlan(load_cell=LoadCell(noise_sd_N=0.0, sample_rate_hz=BENCH_SAMPLE_RATE_HZ),
                            settle_periods=args.settle_periods, periods=args.periods, seed=args.seed)

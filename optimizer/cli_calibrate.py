@@ -1,7 +1,8 @@
 """`featherstar calibrate RUN... --scene SCENE`: fit feather coefficients to recorded load-cell runs.
 
 Writes DIR/calibration.json (the parameter set, each coefficient with its sd and range, fit
-quality), DIR/set.txt (the same as `--set` arguments for run, optimize and sweep) and
+quality), DIR/set.txt (the same as `--set` arguments for run, optimize and sweep),
+DIR/feather-parameters.toml (the feather block's `parameters` line for a scene file) and
 DIR/fit.png (measured and fitted thrust per run). The method: optimizer.calibration.
 """
 from __future__ import annotations
@@ -10,7 +11,7 @@ import argparse
 import json
 from pathlib import Path
 
-from .calibration import BIN_S, DEFAULT_COEFFICIENTS, Calibration, calibrate
+from .calibration import BIN_S, DEFAULT_COEFFICIENTS, Calibration, calibrate, feather_block
 from .errors import OptimizerError
 from .log import dumps
 from .recordings import read_recording
@@ -83,10 +84,19 @@ def set_arguments(result: Calibration) -> str:
 def write_calibration(result: Calibration, out: Path, *, runs: list[str], scene: str, overrides: dict) -> list[Path]:
     out.mkdir(parents=True, exist_ok=True)
     report = {**result.as_dict(), "scene": scene, "overrides": overrides, "runs": runs, "window_s": result.window_s}
-    paths = [out / "calibration.json", out / "set.txt", out / "fit.png"]
+    paths = [out / "calibration.json", out / "set.txt", out / "feather-parameters.toml", out / "fit.png"]
     paths[0].write_text(json.dumps(json.loads(dumps(report)), indent=2) + "\n")
     paths[1].write_text(set_arguments(result) + "\n")
-    _fit_figure(result, runs, paths[2])
+    # The scene's own feather parameters, the feather.* overrides, then the calibrated ones.
+    merged = {**feather_block(scene).get("parameters", {}),
+              **{k.split(".", 1)[1]: v for k, v in overrides.items() if k.startswith("feather.")
+                 and k.split(".", 1)[1] not in ("morphology", "n_units", "root_support")},
+              **{k.split(".", 1)[1]: v for k, v in result.parameter_set().items()}}
+    inline = ", ".join(f"{k} = {v:.6g}" if isinstance(v, (int, float)) else f'{k} = "{v}"' for k, v in merged.items())
+    paths[2].write_text(f"# calibrated feather of scene '{scene}' ({', '.join(Path(r).name for r in runs)}):\n"
+                        "# replace the parameters line of the scene's [blocks.feather] table with\n"
+                        f"parameters = {{ {inline} }}\n")
+    _fit_figure(result, runs, paths[3])
     return paths
 
 

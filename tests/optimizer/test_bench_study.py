@@ -147,9 +147,12 @@ def test_cli_study_on_the_bench_with_a_simulated_prior_writes_measured_outputs(t
       "--batch-size", "2"], "one bench runs one stroke at a time"),
     (["--hardware", "servo=modbus-tcp://127.0.0.1:1?unit=2&timeout_s=-1",
       "--hardware", "loadcell=modbus-tcp://127.0.0.1:1?unit=1"], "timeout_s='-1' must be a positive number"),
+    (["--hardware", "servo=modbus-tcp://127.0.0.1:1?unit=2", "--hardware", "loadcell=modbus-tcp://127.0.0.1:1?unit=1"],
+     "scene 'kinematic' has no simulated 'servo' block to replace"),
 ])
 def test_bad_bench_options_are_refused_in_one_line(tmp_path, capsys, args, message):
-    assert optimizer_main(["optimize", "testbed", "--out", str(tmp_path / "out"), *args]) == 2
+    scene = "kinematic" if message.startswith("scene") else "testbed"
+    assert optimizer_main(["optimize", scene, "--out", str(tmp_path / "out"), *args]) == 2
     err = capsys.readouterr().err.strip()
     assert message in err and len(err.splitlines()) == 1
 

@@ -3,6 +3,7 @@ before any simulation runs."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -117,3 +118,44 @@ def test_a_prior_of_the_same_feather_gives_its_best_strokes_first(tmp_path):
         SimPrior.load(tmp_path / "sim", feather={"morphology": "chordwise"}, space=space, maximize=False)
     with pytest.raises(OptimizerError, match="period_s"):
         SimPrior.load(tmp_path / "sim", feather={"morphology": "chordwise"}, space=stroke_space(3.0), maximize=True)
+
+
+def test_calibration_recovers_coefficients_from_simulated_recordings(tmp_path):
+    """The fit without real time: recordings as the emulator's plant would serve them (servo and
+    feather FMUs Gauss-Seidel at 1 ms, read every 4 ms, angle in 0.01°, 5 mN noise), so this runs
+    on a machine too loaded for the emulator tests."""
+    from cosim.run import run_scene
+    from optimizer.recordings import Recording
+
+    hidden = {"oscillatory_drag": 0.0, "drag_coeff": 1.56, "added_mass_scale": 0.85}
+    result = run_scene("testbed", {"feather.morphology": "plain", "controller.period_s": 1.0, "master.t_end_s": 1.6,
+                                   "master.coupling": "gauss-seidel", "master.step_s": 1e-3, "master.adaptive": False,
+                                   **{f"feather.{k}": v for k, v in hidden.items()}},
+                       outputs=["feather.thrust_N", "servo.angle_rad"])
+    rng = np.random.default_rng(1)
+    t = result.time[::4]
+    angle = np.round(np.degrees(result["servo.angle_rad"][::4]), 2) * math.pi / 180
+    runs = [Recording(f"run{k}", t, angle, result["feather.thrust_N"][::4] + rng.normal(0, 0.005, len(t)),
+                      ("s", "rad", "N"), 1.0) for k in range(3)]
+    calibration = calibrate(runs, "testbed", {"feather.morphology": "plain"},
+                            {"drag_coeff": None, "added_mass_scale": None}, window_s=1.5)
+    for name in ("drag_coeff", "added_mass_scale"):
+        assert calibration.values[name] == pytest.approx(hidden[name], rel=0.15), calibration.values
+        assert 0 < calibration.sd[name] < 0.1 * calibration.values[name]
+    assert calibration.parameter_set()["feather.oscillatory_drag"] == 0.0
+    assert calibration.r_squared > 0.95
+
+    # The parameter set, as --set arguments and as a scene's feather parameters line.
+    from cosim.scene import load_scene
+    from optimizer.cli_calibrate import write_calibration
+
+    paths = write_calibration(calibration, tmp_path / "cal", runs=["run0", "run1", "run2"], scene="testbed",
+                              overrides={"feather.morphology": "plain"})
+    assert (tmp_path / "cal" / "set.txt").read_text().startswith("--set feather.oscillatory_drag=0 --set feather.drag_coeff=")
+    line = next(ln for ln in paths[2].read_text().splitlines() if ln.startswith("parameters"))
+    scene_text = Path(load_scene("testbed").source).read_text()
+    scene_text = "\n".join(line if ln.startswith("parameters = {") else ln for ln in scene_text.splitlines())
+    (tmp_path / "calibrated.toml").write_text(scene_text)
+    feather = load_scene(tmp_path / "calibrated.toml").to_dict()["blocks"]["feather"]["parameters"]
+    assert feather["drag_coeff"] == pytest.approx(calibration.values["drag_coeff"], rel=1e-5)
+    assert feather["oscillatory_drag"] == 0
