@@ -16,7 +16,7 @@ _EXPORTS = {
     "FeatherstarError": "errors", "SceneError": "errors", "StepError": "errors",
     "Plan": "graph", "plan": "graph",
     "run_monolithic": "monolithic",
-    "RunResult": "run", "run_scene": "run",
+    "RunResult": "run", "run_scene": "run", "Simulator": "simulator",
     "MasterSpec": "scene", "MetricsSpec": "scene", "Scene": "scene", "list_scenes": "scene",
     "load_scene": "scene", "scene_from_dict": "scene",
 }
@@ -26,7 +26,7 @@ def __getattr__(name: str) -> Any:
     # lazy: `import cosim.block` (hil, optimizer) must not pull in CasADi, fmpy and SUNDIALS
     if name in _EXPORTS:
         return getattr(importlib.import_module(f".{_EXPORTS[name]}", __name__), name)
-    raise AttributeError(f"module 'cosim' has no attribute '{name}'")
+    raise AttributeError(f"module '{__name__}' has no attribute '{name}'")
 
 
 __all__ = [
@@ -41,6 +41,7 @@ __all__ = [
     "RunResult",
     "Scene",
     "SceneError",
+    "Simulator",
     "StepError",
     "list_scenes",
     "load_scene",

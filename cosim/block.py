@@ -13,12 +13,16 @@ from typing import Mapping, Protocol, runtime_checkable
 @dataclass(frozen=True)
 class Port:
     """A named scalar port. For outputs, `depends_on` names the inputs it reads at the same
-    instant (direct feedthrough); the master uses it to order evaluation and find algebraic loops."""
+    instant (direct feedthrough); the master uses it to order evaluation and find algebraic loops.
+    `type` is an FMI 3.0 type name (cosim.fmi_types; Python blocks are Float64); a `discrete`
+    port changes only at events (an FMU's discrete input can be set only in event mode)."""
 
     name: str
     unit: str
     description: str = ""
     depends_on: tuple[str, ...] = ()
+    type: str = "Float64"
+    discrete: bool = False
 
 
 @runtime_checkable
@@ -68,6 +72,34 @@ class RollbackBlock(Block, Protocol):
 
     def set_state(self, state: object) -> None:
         """Return to a snapshot taken by get_state."""
+
+
+@dataclass(frozen=True)
+class Passivity:
+    """A passive block declares it: water and damping can only take energy out of it, so its
+    mechanical energy (output `energy_output`, J) may not grow by more than the work its power
+    ports put in. Each power port is an (effort output, flow input) pair whose product is the
+    power into the block: (torque N·m, rate rad/s) or (force N, velocity m/s). The passive-energy
+    guard (cosim.guards) judges every block that declares this."""
+
+    energy_output: str
+    power_ports: tuple[tuple[str, str], ...]
+
+
+#: featherstar's models report their energy here and pair `<x>_torque_Nm` outputs with
+#: `<x>_rate_rad_s` inputs (the actuator's torque and the rate it imposes).
+ENERGY_OUTPUT = "mechanical_energy_J"
+TORQUE_SUFFIX, RATE_SUFFIX = "_torque_Nm", "_rate_rad_s"
+
+
+def passivity_by_convention(inputs: Mapping[str, Port], outputs: Mapping[str, Port]) -> Passivity | None:
+    """The Passivity of a model that follows featherstar's port names (the one place they are read):
+    an energy output and at least one torque/rate pair."""
+    if ENERGY_OUTPUT not in outputs:
+        return None
+    pairs = tuple((out, out[: -len(TORQUE_SUFFIX)] + RATE_SUFFIX) for out in outputs
+                  if out.endswith(TORQUE_SUFFIX) and out[: -len(TORQUE_SUFFIX)] + RATE_SUFFIX in inputs)
+    return Passivity(ENERGY_OUTPUT, pairs) if pairs else None
 
 
 def can_iterate(block: object) -> bool:

@@ -28,10 +28,12 @@ from typing import Any, Hashable, Mapping
 
 from fmu_src.errors import FeatherstarError, ModelError
 
-from .block import Block, MemorylessBlock, Port, RollbackBlock, can_iterate
+from .block import Block, MemorylessBlock, Passivity, Port, RollbackBlock, can_iterate, passivity_by_convention
 from .controller import STROKE_KEYS, StrokeController, resolve_stroke
 from .errors import SceneError
-from .scene import BlockSpec, FrozenMap, PortRef, parse_value
+from .feedthrough import model_feedthrough
+from .fmi_types import parameter_value
+from .specs import BlockSpec, FrozenMap, PortRef, parse_value
 
 
 @dataclass
@@ -47,11 +49,15 @@ class ResolvedBlock:
     identity: Hashable | None = None  # equal identities + equal input sources => interchangeable
     period_s: float | None = None
     model: Any = None  # fmu_src Model for model-backed blocks
-    parameters: dict[str, float] = field(default_factory=dict)
+    parameters: dict[str, Any] = field(default_factory=dict)  # models: floats; FMU files: each variable's type
     fmu_path: Path | None = None
     fmu_info: Any = None
     obj: Any = None  # python block object (stroke, gain, python kinds)
     signals: tuple[PortRef, ...] = ()  # recorder
+    records_only: bool = False  # a recorder: names signals to record, computes nothing
+    can_rollback: bool = False  # its state can be saved and restored (the adaptive weak master rejects steps)
+    stroke: Any = None  # a stroke generator's Stroke (the period, the ramps the guards check)
+    passivity: Passivity | None = None  # a passive block's energy output and power ports (the energy guard)
     notes: list[str] = field(default_factory=list)
 
     @property
@@ -118,7 +124,8 @@ class StrokeKind(BlockKind):
             raise SceneError(str(exc)) from None
         obj = StrokeController(spec.name, stroke)
         return ResolvedBlock(spec, {}, dict(obj.outputs), memoryless=True, iterable=True, continuous=True,
-                             identity=("stroke", stroke), period_s=stroke.period_s, obj=obj)
+                             identity=("stroke", stroke), period_s=stroke.period_s, obj=obj, can_rollback=True,
+                             stroke=stroke)
 
 
 # --- recorder -----------------------------------------------------------------------------------
@@ -134,7 +141,8 @@ class RecorderKind(BlockKind):
         if isinstance(signals, str):
             signals = [s for s in signals.split(",") if s.strip()]
         refs = tuple(PortRef.parse(str(s), f"{_where(spec)} signal") for s in signals)
-        return ResolvedBlock(spec, {}, {}, memoryless=True, iterable=True, continuous=True, signals=refs)
+        return ResolvedBlock(spec, {}, {}, memoryless=True, iterable=True, continuous=True, signals=refs,
+                             records_only=True, can_rollback=True)
 
 
 # --- gain ---------------------------------------------------------------------------------------
@@ -187,7 +195,7 @@ class GainKind(BlockKind):
         obj = Gain(spec.name, **values)
         return ResolvedBlock(spec, dict(obj.inputs), dict(obj.outputs), memoryless=True,
                              iterable=obj.can_iterate, continuous=True,
-                             identity=("gain", tuple(sorted(values.items()))), obj=obj)
+                             identity=("gain", tuple(sorted(values.items()))), obj=obj, can_rollback=True)
 
 
 # --- constant -----------------------------------------------------------------------------------
@@ -215,6 +223,10 @@ class Constant:
 
     def get_outputs(self) -> dict[str, float]:
         return dict(self.values)
+
+    def set_output(self, name: str, value: float) -> None:
+        """A new value from outside the scene (Simulator.write): a command, the flow speed."""
+        self.values[name] = float(value)
 
     def do_step(self, t_s: float, h_s: float) -> None:
         pass
@@ -247,7 +259,7 @@ class ConstantKind(BlockKind):
             values[port] = (float(value), str(entry["unit"]))
         obj = Constant(spec.name, values)
         return ResolvedBlock(spec, {}, dict(obj.outputs), memoryless=True, iterable=True, continuous=True,
-                             identity=("constant", tuple(sorted(values.items()))), obj=obj)
+                             identity=("constant", tuple(sorted(values.items()))), obj=obj, can_rollback=True)
 
 
 # --- python -------------------------------------------------------------------------------------
@@ -294,7 +306,9 @@ class PythonKind(BlockKind):
         memoryless = isinstance(obj, MemorylessBlock)
         return ResolvedBlock(spec, dict(obj.inputs), dict(obj.outputs), memoryless=memoryless,
                              iterable=can_iterate(obj), continuous=memoryless, identity=None,
-                             period_s=getattr(obj, "period_s", None), obj=obj)
+                             period_s=getattr(obj, "period_s", None), obj=obj,
+                             can_rollback=memoryless or isinstance(obj, RollbackBlock),
+                             passivity=getattr(obj, "passivity", None))
 
 
 # --- fmu ----------------------------------------------------------------------------------------
@@ -322,23 +336,9 @@ def _model(model_ref: str, options: FrozenMap) -> Any:
     return build_model(model_ref, dict(options))
 
 
-def model_feedthrough(model: Any) -> dict[str, tuple[str, ...]]:
-    """For each output of a fmu_src Model, the inputs it depends on directly (exact sparsity)."""
-    import casadi as ca
-
-    if model.u.numel() == 0:
-        return {v.name: () for v in model.outputs}
-    sp = ca.jacobian(model.y, model.u).sparsity()
-    rows, cols = sp.get_triplet()
-    deps: dict[str, list[str]] = {v.name: [] for v in model.outputs}
-    for r, c in zip(rows, cols):
-        deps[model.outputs[r].name].append(model.inputs[c].name)
-    return {k: tuple(v) for k, v in deps.items()}
-
-
 class FmuKind(BlockKind):
     name = "fmu"
-    KEYS = ("model", "fmu", "options", "parameters")
+    KEYS = ("model", "fmu", "options", "parameters", "interface")
 
     def override(self, spec: BlockSpec, key: str, raw: Any) -> BlockSpec:
         return dataclasses.replace(spec, overrides=spec.overrides.set(key, parse_value(raw)))
@@ -399,10 +399,11 @@ class FmuKind(BlockKind):
         outputs = {v.name: Port(v.name, v.unit, v.description, feed[v.name]) for v in model.outputs}
         identity = ("model", model_ref, FrozenMap(options), FrozenMap(params))
         return ResolvedBlock(spec, inputs, outputs, iterable=True, continuous=True, identity=identity,
-                             model=model, parameters={k: float(v) for k, v in params.items()}, notes=notes)
+                             model=model, parameters={k: float(v) for k, v in params.items()}, notes=notes,
+                             can_rollback=True, passivity=passivity_by_convention(inputs, outputs))
 
     def _resolve_file(self, spec: BlockSpec, fmu_ref: str) -> ResolvedBlock:
-        from .fmu_block import read_fmu_info
+        from .fmu_info import read_fmu_info
         from .preflight import check_fmu_archive
 
         path = Path(fmu_ref).expanduser()
@@ -410,18 +411,41 @@ class FmuKind(BlockKind):
             raise SceneError(f"{_where(spec)}: FMU file '{fmu_ref}' does not exist")
         check_fmu_archive(path, _where(spec))
         info = read_fmu_info(path, spec.name)
-        params = {**dict(spec.settings.get("parameters", {})), **spec.overrides}
+        overrides = dict(spec.overrides)
+        interface = overrides.pop("interface", spec.settings.get("interface"))
+        if interface is not None:
+            info = _choose_interface(info, str(interface), _where(spec))
+        params = {**dict(spec.settings.get("parameters", {})), **overrides}
         if "options" in spec.settings:
             raise SceneError(f"{_where(spec)}: build options apply to models, not to an FMU file")
+        typed = {}
         for key, value in params.items():
             if key not in info.parameters:
                 raise SceneError(f"{_where(spec)}: FMU '{path.name}' has no tunable/fixed parameter '{key}'; "
                                  f"it has: {', '.join(sorted(info.parameters)) or 'none'}")
-            if isinstance(value, (str, bool)):
-                raise SceneError(f"{_where(spec)}: parameter {key} = {value!r} is not a number")
+            try:
+                typed[key] = parameter_value(info.parameter_types[key], value,
+                                             f"{_where(spec)}: parameter {key} ({info.parameter_types[key]})")
+            except ValueError as exc:
+                raise SceneError(str(exc)) from None
         return ResolvedBlock(spec, dict(info.inputs), dict(info.outputs), iterable=True,
-                             continuous=info.has_me, identity=("fmu", str(path.resolve()), FrozenMap(params)),
-                             parameters={k: float(v) for k, v in params.items()}, fmu_path=path, fmu_info=info)
+                             continuous=info.has_me, identity=("fmu", str(path.resolve()), interface, FrozenMap(params)),
+                             parameters=typed, fmu_path=path, fmu_info=info,
+                             can_rollback=info.can_get_set_state,
+                             passivity=passivity_by_convention(info.inputs, info.outputs))
+
+
+def _choose_interface(info: Any, interface: str, where: str) -> Any:
+    """The FMU seen through one interface only (`interface = "me"` or `"cs"`)."""
+    md = info.model_description
+    if interface == "me" and info.has_me:
+        return dataclasses.replace(info, has_cs=False, can_get_set_state=bool(md.modelExchange.canGetAndSetFMUstate))
+    if interface == "cs" and info.has_cs:
+        return dataclasses.replace(info, has_me=False)
+    if interface in ("me", "cs"):
+        raise SceneError(f"{where}: interface = \"{interface}\" but the FMU has no "
+                         f"{'Model Exchange' if interface == 'me' else 'Co-Simulation'} interface")
+    raise SceneError(f"{where}: interface = {interface!r}; use \"me\" (Model Exchange) or \"cs\" (Co-Simulation)")
 
 
 KINDS: dict[str, BlockKind] = {k.name: k for k in (StrokeKind(), RecorderKind(), ConstantKind(), GainKind(), PythonKind(), FmuKind())}
@@ -435,11 +459,3 @@ def block_kind(kind: str, scene: str = "") -> BlockKind:
 
 def resolve(spec: BlockSpec) -> ResolvedBlock:
     return block_kind(spec.kind).resolve(spec)
-
-
-def is_rollback_capable(rb: ResolvedBlock) -> bool:
-    if rb.memoryless or rb.model is not None:
-        return True
-    if rb.fmu_info is not None:
-        return rb.fmu_info.can_get_set_state
-    return isinstance(rb.obj, RollbackBlock)

@@ -102,7 +102,8 @@ class StrokeController:
         a, r, acc = root_motion(self.stroke, t_s)
         return {"angle_rad": a, "rate_rad_s": r, "accel_rad_s2": acc}
 
-    def motion(self, t_s: float) -> tuple[float, float, float]:
+    def outputs_at(self, t_s: float) -> tuple[float, float, float]:
+        """Output values at t_s in the order of `outputs` (the master's fast path: no dicts)."""
         return root_motion(self.stroke, t_s)
 
     # Block protocol

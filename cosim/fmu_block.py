@@ -1,125 +1,37 @@
-"""The FMU adapter: every fmpy call of featherstar's master lives here.
-
-`read_fmu_info` parses modelDescription.xml only (no binary) for the scene checks: Float64/Real
-scalar inputs and outputs with units, direct feedthrough from <ModelStructure> (an output whose
-dependencies are not listed depends on every input, as the standard says), tunable and fixed
-parameters, interfaces (ME, CS) and capabilities. FMI 2.0 and 3.0 are supported.
+"""The FMU adapter: every fmpy call of featherstar's master lives here (what is known before
+loading the binary is cosim.fmu_info).
 
 `FmuUnit` instantiates one FMU as Model Exchange ("me": the master integrates its states) or
 Co-Simulation ("cs": the FMU steps itself). The calls made in the master's hot loop (set time,
 states and inputs; get derivatives and outputs; doStep) go through raw ctypes prototypes on
 preallocated arrays — fmpy's own wrappers cost several µs per call — and their status codes are
-checked here. Every failure becomes a StepError naming the block, the FMI function and the time
-(fmpy's FMICallException names neither the instance nor the time).
+checked here; ports of other types go through cosim.fmu_values. Every failure becomes a
+StepError naming the block, the FMI function and the time (fmpy's FMICallException names neither
+the instance nor the time) and quoting the FMU's own log lines.
+
+Model Exchange discrete inputs can be set only in event mode: the setters leave them in inbuf,
+`discrete_inputs_changed` tells the master, and `event_update` sets them in event mode.
 """
 from __future__ import annotations
 
 import ctypes
 import shutil
+from collections import deque
 import tempfile
 from ctypes import CFUNCTYPE, c_bool, c_double, c_int, c_size_t, c_uint, c_void_p
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Sequence
 
 import fmpy
 from fmpy.fmi1 import FMICallException
-from fmpy.model_description import read_model_description
 
 from .block import Port
-from .errors import SceneError, StepError
-from .units import Unit
+from .errors import StepError
+from .fmu_info import FmuInfo, read_fmu_info
+from .fmu_values import TypedAccess, TypedPorts
+from .units import FastPath, Unit
 
 STATUS = ["ok", "warning", "discard", "error", "fatal", "pending"]
-
-
-@dataclass
-class FmuInfo:
-    path: Path
-    fmi_version: str
-    model_name: str
-    inputs: dict[str, Port]
-    outputs: dict[str, Port]
-    parameters: dict[str, int]  # name -> value reference (Float64/Real tunable or fixed)
-    vr: dict[str, int]
-    has_me: bool
-    has_cs: bool
-    can_get_set_state: bool  # for the interface that will be used (CS if any, else ME)
-    n_states: int
-    n_event_indicators: int
-    needs_completed_integrator_step: bool
-    state_names: list[str] = field(default_factory=list)
-    model_description: Any = None
-
-
-def _unit_of(var: Any) -> str:
-    if getattr(var, "unit", None):
-        return str(var.unit)
-    dt = getattr(var, "declaredType", None)
-    if dt is not None and getattr(dt, "unit", None):
-        return str(dt.unit)
-    return ""
-
-
-def read_fmu_info(path: Path, block: str = "") -> FmuInfo:
-    where = f"block '{block}': FMU '{path}'" if block else f"FMU '{path}'"
-    try:
-        md = read_model_description(str(path), validate=False)
-    except Exception as exc:
-        raise SceneError(f"{where}: cannot read modelDescription.xml ({exc})") from None
-    version = str(md.fmiVersion)
-    if not (version.startswith("2.") or version.startswith("3.")):
-        raise SceneError(f"{where}: FMI {version} is not supported (FMI 2.0 and 3.0 are)")
-    real_types = ("Real", "Float64")
-    inputs, outputs, params, vr = {}, {}, {}, {}
-    problems = []
-    by_var = {}
-    for var in md.modelVariables:
-        if var.causality not in ("input", "output", "parameter"):
-            continue
-        if var.type not in real_types or (getattr(var, "dimensions", None) or []):
-            if var.causality in ("input", "output"):
-                problems.append(f"{where}: {var.causality} '{var.name}' is {var.type}"
-                                f"{' (array)' if getattr(var, 'dimensions', None) else ''}; only scalar "
-                                "Float64/Real ports are supported")
-            continue
-        vr[var.name] = var.valueReference
-        by_var[id(var)] = var.name
-        if var.causality == "parameter":
-            if var.variability in ("fixed", "tunable"):
-                params[var.name] = var.valueReference
-        elif var.causality == "input":
-            inputs[var.name] = Port(var.name, _unit_of(var), var.description or "")
-    input_names = tuple(inputs)
-    listed = {}
-    for unknown in md.outputs or []:
-        name = unknown.variable.name
-        if unknown.dependencies is None:
-            listed[name] = input_names
-        else:
-            listed[name] = tuple(d.name for d in unknown.dependencies if d.name in inputs)
-    for var in md.modelVariables:
-        if var.causality == "output" and var.name in vr:
-            outputs[var.name] = Port(var.name, _unit_of(var), var.description or "",
-                                     listed.get(var.name, input_names))
-    if problems:
-        raise SceneError(problems)
-    me, cs = md.modelExchange, md.coSimulation
-    iface = cs or me
-    n_states = len(md.derivatives or [])
-    state_names = []
-    for d in md.derivatives or []:
-        state = getattr(d.variable, "derivative", None)
-        state_names.append(state.name if state is not None else d.variable.name)
-    return FmuInfo(
-        path=path, fmi_version=version, model_name=md.modelName, inputs=inputs, outputs=outputs,
-        parameters=params, vr=vr, has_me=me is not None, has_cs=cs is not None,
-        can_get_set_state=bool(iface and iface.canGetAndSetFMUstate),
-        n_states=n_states, n_event_indicators=int(md.numberOfEventIndicators or 0),
-        needs_completed_integrator_step=bool(me is not None and getattr(me, "needsCompletedIntegratorStep", False)
-                                             and not getattr(me, "completedIntegratorStepNotNeeded", False)),
-        state_names=state_names, model_description=md,
-    )
 
 
 _P = c_void_p  # every array argument is passed as a raw address
@@ -133,7 +45,7 @@ def _proto(dll: Any, name: str, *argtypes: Any) -> Callable[..., int]:
 class FmuUnit(Unit):
     """One FMU instance, Model Exchange (`mode="me"`) or Co-Simulation (`mode="cs"`)."""
 
-    def __init__(self, name: str, info: FmuInfo, parameters: dict[str, float], mode: str,
+    def __init__(self, name: str, info: FmuInfo, parameters: dict[str, Any], mode: str,
                  unzip_dir: str | None = None) -> None:
         super().__init__(name, list(info.inputs), list(info.outputs))
         self.info = info
@@ -152,13 +64,32 @@ class FmuUnit(Unit):
         self._terminated = False
         self._vr_in = (c_uint * max(len(self.input_names), 1))(*[info.vr[n] for n in self.input_names])
         self._vr_out = (c_uint * max(len(self.output_names), 1))(*[info.vr[n] for n in self.output_names])
+        self.port_in = [info.port_vars[n] for n in self.input_names]
+        self.port_out = [info.port_vars[n] for n in self.output_names]
+        # Model Exchange: discrete inputs may be set in event mode only; the master's setters leave
+        # them in inbuf and the event update pushes them (cosim.strong enters event mode for that)
+        self._discrete_in = [i for i, pv in enumerate(self.port_in) if pv.discrete] if mode == "me" else []
+        self.has_discrete_inputs = bool(self._discrete_in)
+        self._pushed: dict[int, float] = {}
+        self.log_lines: deque[tuple[int, str]] = deque(maxlen=8)
 
     # ---------------------------------------------------------------------------------------
     def _fail(self, function: str, t: float, status: int | str, cause: str = "") -> StepError:
         label = STATUS[status] if isinstance(status, int) and 0 <= status < len(STATUS) else status
-        return StepError(self.name, t, f"{function} returned status {label}", function=function,
+        said = self.fmu_said()
+        message = f"{function} returned status {label}" + (f"; the FMU logged: {said}" if said else "")
+        return StepError(self.name, t, message, function=function,
                          cause=cause or "the FMU rejected the call (invalid inputs or parameters, or the "
                          "model left its valid range)")
+
+    def fmu_said(self) -> str:
+        """The FMU's own recent log lines (warnings and errors first), for error messages."""
+        lines = [text for status, text in self.log_lines if status >= 1] or [text for _, text in self.log_lines][-1:]
+        self.log_lines.clear()
+        return " | ".join(dict.fromkeys(lines))
+
+    def _log(self, status: int, message: bytes | None) -> None:
+        self.log_lines.append((int(status), (message or b"").decode("utf-8", "replace").strip()))
 
     def _call(self, function: str, fn: Callable[[], Any]) -> Any:
         try:
@@ -190,14 +121,19 @@ class FmuUnit(Unit):
             from fmpy.fmi2 import FMU2Model, FMU2Slave
 
             self.fmu = (FMU2Slave if self.mode == "cs" else FMU2Model)(**kw)
-            self._call("instantiate", lambda: self.fmu.instantiate())
+            self._callbacks = self._fmi2_callbacks()
+            self._call("instantiate", lambda: self.fmu.instantiate(callbacks=self._callbacks))
         self._bind()
         fmu = self.fmu
-        if self.parameters:
-            vrs = [info.parameters[k] for k in self.parameters]
-            vals = [float(v) for v in self.parameters.values()]
-            setter = fmu.setFloat64 if self.fmi3 else fmu.setReal
-            self._call("set parameters", lambda: setter(vrs, vals))
+        by_type: dict[str, tuple[list[int], list[Any]]] = {}
+        for key, value in self.parameters.items():
+            vrs, vals = by_type.setdefault(info.parameter_types.get(key, "Float64"), ([], []))
+            vrs.append(info.parameters[key])
+            vals.append(value)
+        for type_, (vrs, vals) in by_type.items():
+            status = self._access.set(type_, vrs, vals)
+            if status > 1:
+                raise self._fail(f"{self._access.name('Set', type_)} (parameters)", t0, status)
         if self.fmi3:
             self._call("fmi3EnterInitializationMode",
                        lambda: fmu.enterInitializationMode(tolerance=rtol, startTime=t0, stopTime=t_end))
@@ -210,16 +146,38 @@ class FmuUnit(Unit):
             self._event_iteration()
             self._call("enterContinuousTimeMode", fmu.enterContinuousTimeMode)
 
-    def _log3(self, env, status, category, message) -> None:  # FMU log: keep errors for messages
-        if status >= 2:
-            self.last_message = (message or b"").decode("utf-8", "replace")
+    def _log3(self, env, status, category, message) -> None:
+        self._log(status, message)
 
-    last_message = ""
+    def _fmi2_callbacks(self) -> Any:
+        """fmi2CallbackFunctions whose logger keeps the FMU's lines (fmpy's native proxy formats
+        the variadic message first)."""
+        from fmpy import calloc, free
+        from fmpy.fmi2 import (fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
+                               fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
+
+        callbacks = fmi2CallbackFunctions()
+        callbacks.logger = fmi2CallbackLoggerTYPE(lambda env, name, status, category, message: self._log(status, message))
+        callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+        callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+        try:
+            from fmpy.logging import addLoggerProxy
+
+            addLoggerProxy(ctypes.byref(callbacks))
+        except Exception:  # no native proxy for this platform: messages arrive unformatted
+            pass
+        return callbacks
 
     def _bind(self) -> None:
         dll = self.fmu.dll
         inst = self.fmu.component
         self._inst = inst
+        self._access = TypedAccess(dll, inst, self.fmi3)
+        self._typed = TypedPorts(self._access, self.port_in, self.port_out, self.output_names, self.inbuf,
+                                 self.outbuf, fail=lambda function, status: self._fail(function, self.t, status),
+                                 carry_error=lambda message, function: StepError(
+                                     self.name, self.t, message, function=function,
+                                     cause="featherstar carries integers as float64, exact to 2**53"))
         pre = "fmi3" if self.fmi3 else "fmi2"
         if self.fmi3:
             self._setf = _proto(dll, "fmi3SetFloat64", c_void_p, _P, c_size_t, _P, c_size_t)
@@ -247,6 +205,20 @@ class FmuUnit(Unit):
 
     # --- instant evaluation --------------------------------------------------------------
     def input_setter(self, idx: Sequence[int]) -> Callable[[], None]:
+        held = set(self._discrete_in)
+        return self._setter([i for i in idx if i not in held])
+
+    def _setter(self, idx: Sequence[int]) -> Callable[[], None]:
+        fast = [i for i in idx if self.port_in[i].fast]
+        typed = [i for i in idx if not self.port_in[i].fast]
+        return _chain([self._fast_setter(fast) if fast else None, self._typed.setter(typed) if typed else None])
+
+    def output_getter(self, idx: Sequence[int]) -> Callable[[], None]:
+        fast = [i for i in idx if self.port_out[i].fast]
+        typed = [i for i in idx if not self.port_out[i].fast]
+        return _chain([self._fast_getter(fast) if fast else None, self._typed.getter(typed) if typed else None])
+
+    def _fast_setter(self, idx: Sequence[int]) -> Callable[[], None]:
         idx = list(idx)
         n = len(idx)
         if n == 0:
@@ -276,7 +248,7 @@ class FmuUnit(Unit):
         push._keep = vr  # keep the arrays alive with the closure
         return push
 
-    def output_getter(self, idx: Sequence[int]) -> Callable[[], None]:
+    def _fast_getter(self, idx: Sequence[int]) -> Callable[[], None]:
         idx = list(idx)
         n = len(idx)
         if n == 0:
@@ -306,6 +278,20 @@ class FmuUnit(Unit):
         get._keep = vr
         return get
 
+    def discrete_inputs_changed(self) -> bool:
+        inbuf, pushed = self.inbuf, self._pushed
+        return any(inbuf[i] != pushed.get(i) and inbuf[i] == inbuf[i] for i in self._discrete_in)
+
+    def _push_discrete(self) -> None:
+        """In event mode: set the discrete inputs the master has put in inbuf since the last event."""
+        if not self._discrete_in:
+            return
+        if not hasattr(self, "_discrete_push"):
+            self._discrete_push = self._setter(self._discrete_in)
+        self._discrete_push()
+        for i in self._discrete_in:
+            self._pushed[i] = self.inbuf[i]
+
     # --- model exchange ------------------------------------------------------------------
     def set_time(self, t: float) -> None:
         self.t = t
@@ -328,6 +314,27 @@ class FmuUnit(Unit):
         status = self._get_dx(self._inst, address, self.n_states)
         if status > 1:
             raise self._fail("GetContinuousStateDerivatives" if self.fmi3 else "GetDerivatives", self.t, status)
+
+    def fast_path(self) -> FastPath:
+        """The ME calls on the raw FMI entry points (fmpy's wrappers cost several µs per call); a
+        bad status goes through the normal method, which raises the StepError."""
+        if self.mode != "me":
+            return super().fast_path()
+        inst, set_time, set_x, get_dx, n = self._inst, self._set_time, self._set_x, self._get_dx, self.n_states
+
+        def fast_set_time(t: float) -> None:
+            self.t = t
+            if set_time(inst, t) > 1:
+                self.set_time(t)
+
+        def fast_set_states(address: int) -> None:
+            if set_x(inst, address, n) > 1:
+                self.set_states(address)
+
+        def fast_get_derivatives(address: int) -> None:
+            if get_dx(inst, address, n) > 1:
+                self.get_derivatives(address)
+        return FastPath(fast_set_time, fast_set_states, fast_get_derivatives)
 
     def state_names(self) -> list[str]:
         return list(self.info.state_names)
@@ -361,6 +368,7 @@ class FmuUnit(Unit):
 
     def event_update(self) -> tuple[bool, float | None, bool]:
         self._call("EnterEventMode", self.fmu.enterEventMode)
+        self._push_discrete()
         result = self._event_iteration()
         self._call("EnterContinuousTimeMode", self.fmu.enterContinuousTimeMode)
         return result
@@ -383,8 +391,8 @@ class FmuUnit(Unit):
             status = self._do_step2(self._inst, t, h, 0)
         if status > 1:
             raise self._fail("fmi3DoStep" if self.fmi3 else "fmi2DoStep", t, status,
-                             cause=self.last_message or "the FMU's integrator failed (step too large for a "
-                             "stiff or blowing-up model, or invalid inputs)")
+                             cause="the FMU's integrator failed (step too large for a stiff or blowing-up "
+                             "model, or invalid inputs)")
         self.t = t + h
 
     def get_state(self) -> Any:
@@ -422,6 +430,20 @@ class FmuUnit(Unit):
             self._unzip = None
 
 
+def _chain(fns: list[Callable[[], None] | None]) -> Callable[[], None]:
+    live = [f for f in fns if f is not None]
+    if not live:
+        return lambda: None
+    if len(live) == 1:
+        return live[0]
+    first, second = live
+
+    def both() -> None:
+        first()
+        second()
+    return both
+
+
 def extract(path: Path) -> str:
     """Unzip an FMU once; several instances of the same FMU can share the folder."""
     folder = tempfile.mkdtemp(prefix="featherstar-fmu-")
@@ -433,7 +455,7 @@ def model_fmu_info(model: Any, fmu_path: Path, block: str) -> FmuInfo:
     """FmuInfo of an FMU exported from a fmu_src Model; ports come from the model (exact
     feedthrough from CasADi) rather than from the XML, which may not list dependencies."""
     info = read_fmu_info(fmu_path, block)
-    from .blocks import model_feedthrough
+    from .feedthrough import model_feedthrough
 
     feed = model_feedthrough(model)
     info.outputs = {n: Port(p.name, p.unit, p.description, feed.get(n, p.depends_on)) for n, p in info.outputs.items()}

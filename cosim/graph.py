@@ -19,9 +19,12 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Iterable, Sequence
 
-from .blocks import ResolvedBlock, is_rollback_capable, resolve
+from .blocks import ResolvedBlock, resolve
 from .errors import SceneError
+from .fmi_types import conversion_problem
+from .fmu_ports import expand_array_connections, expand_array_refs, hold_unconnected_inputs, keep_used_outputs
 from .guards import step_problems
+from .sccs import cycle_through, strongly_connected
 from .scene import FrozenMap, PortRef, Scene
 
 #: A model parameter that the scene's stroke controller sets wherever the scene leaves it unset:
@@ -79,7 +82,7 @@ def _port_list(ports: Iterable[str]) -> str:
 def _follow_stroke_amplitude(resolved: dict[str, ResolvedBlock]) -> list[str]:
     """Give every model block with an unset STROKE_AMPLITUDE_PARAMETER the amplitude of the
     scene's stroke controller (when it has exactly one); returns the plan notes saying so."""
-    strokes = {rb.obj.stroke.amplitude_rad for rb in resolved.values() if rb.spec.kind == "stroke"}
+    strokes = {rb.stroke.amplitude_rad for rb in resolved.values() if rb.stroke is not None}
     if len(strokes) != 1:
         return []
     amplitude_rad = strokes.pop()
@@ -128,7 +131,7 @@ def plan(scene: Scene, outputs: Sequence[str] | None = None) -> Plan:
         return True
 
     source_of: dict[PortRef, PortRef] = {}
-    for conn in scene.connections:
+    for conn in expand_array_connections(scene.connections, resolved, problems):
         ok = check_output(conn.src, f"connection '{conn}'")
         dst = conn.dst
         if dst.block not in names:
@@ -151,12 +154,19 @@ def plan(scene: Scene, outputs: Sequence[str] | None = None) -> Plan:
             u_dst = rb.inputs[dst.port].unit
             if not same_unit(u_src, u_dst):
                 problems.append(f"unit mismatch on '{conn}': output is in '{u_src}', input expects '{u_dst}'")
+            why = conversion_problem(resolved[conn.src.block].outputs[conn.src.port].type, rb.inputs[dst.port].type)
+            if why:
+                problems.append(f"type mismatch on '{conn}': {why}")
+    held_notes: list[str] = []
     for name, rb in resolved.items():
-        for port in rb.inputs:
-            ref = PortRef(name, port)
-            if ref not in source_of:
-                problems.append(f"input {ref} is not connected (dangling): connect an output to it "
-                                f"(a constant block for a fixed value)")
+        dangling = [port for port in rb.inputs if PortRef(name, port) not in source_of]
+        if dangling and rb.fmu_info is not None and rb.model is None:
+            held_notes.append(f"{name}: input(s) {', '.join(dangling)} not connected: held at the FMU's start values")
+            hold_unconnected_inputs(rb, set(dangling))
+            continue
+        for port in dangling:
+            problems.append(f"input {PortRef(name, port)} is not connected (dangling): connect an output to it "
+                            f"(a constant block for a fixed value)")
 
     # requested signals
     requested: list[PortRef] = []
@@ -169,6 +179,7 @@ def plan(scene: Scene, outputs: Sequence[str] | None = None) -> Plan:
     else:
         for rb in resolved.values():
             requested.extend(rb.signals)
+    requested = expand_array_refs(requested, resolved)
     metric_refs = []
     for attr in ("thrust", "angle", "speed", "position"):
         text = getattr(scene.metrics, attr)
@@ -199,12 +210,12 @@ def plan(scene: Scene, outputs: Sequence[str] | None = None) -> Plan:
         for port in resolved[b].inputs:
             stack.append(source_of[PortRef(b, port)].block)
     # a needed stroke controller also gives the period even if nothing records it
-    strokes = [n for n, rb in resolved.items() if rb.spec.kind == "stroke"]
+    strokes = [n for n, rb in resolved.items() if rb.stroke is not None]
     period = scene.metrics.period_s or None
     if period is None:
         periods = [resolved[n].period_s for n in strokes if n in needed] or [resolved[n].period_s for n in strokes]
         period = periods[0] if periods else None
-    pruned = [n for n in names if n not in needed and resolved[n].spec.kind != "recorder"]
+    pruned = [n for n in names if n not in needed and not resolved[n].records_only]
 
     # deduplication
     alias_of = {n: n for n in needed}
@@ -233,7 +244,7 @@ def plan(scene: Scene, outputs: Sequence[str] | None = None) -> Plan:
                 while alias_of[alias_of[n]] != alias_of[n]:
                     alias_of[n] = alias_of[alias_of[n]]
     instantiate = [n for n in names if n in needed and alias_of[n] == n]
-    notes: list[str] = list(amplitude_notes)
+    notes: list[str] = list(amplitude_notes) + held_notes
     for n in names:
         if n in needed and alias_of[n] != n:
             notes.append(f"'{n}' is identical to '{alias_of[n]}' and driven by the same signals: integrated once")
@@ -241,6 +252,7 @@ def plan(scene: Scene, outputs: Sequence[str] | None = None) -> Plan:
         notes.append(f"not needed for the requested signals, not instantiated: {', '.join(pruned)}")
 
     p = Plan(scene, resolved, instantiate, alias_of, source_of, requested, [], period, 0.0, pruned, notes)
+    keep_used_outputs(p)
     p.loops = find_loops(p)
     problems = []
     for loop in p.loops:
@@ -277,7 +289,7 @@ def _check_coupling(p: Plan) -> list[str]:
                             "(master.coupling = strong); use master.coupling = jacobi or gauss-seidel")
         if rb.fmu_info is not None and not (rb.fmu_info.has_me or rb.fmu_info.has_cs):
             problems.append(f"block '{n}': the FMU offers neither Model Exchange nor Co-Simulation")
-        if master.coupling != "strong" and master.adaptive and not is_rollback_capable(rb):
+        if master.coupling != "strong" and master.adaptive and not rb.can_rollback:
             problems.append(f"block '{n}' cannot save and restore its state, which the adaptive macro step "
                             "needs to reject a step; set master.adaptive = false")
     return problems
@@ -303,13 +315,13 @@ def find_loops(p: Plan) -> list[Loop]:
         for port in p.blocks[n].inputs:
             src = p.driver(PortRef(n, port))
             edges[(src.block, "out", src.port)].append((n, "in", port))
-    sccs = _tarjan(nodes, edges)
+    sccs = strongly_connected(nodes, edges)
     loops = []
     for comp in sccs:
         members = set(comp)
         if len(comp) == 1 and comp[0] not in edges[comp[0]]:
             continue
-        cycle = _cycle(comp[0], members, edges)
+        cycle = cycle_through(comp[0], members, edges)
         blocks = tuple(dict.fromkeys(b for b, _, _ in sorted(comp)))
         loops.append(Loop(
             blocks=blocks,
@@ -318,78 +330,3 @@ def find_loops(p: Plan) -> list[Loop]:
             cycle=tuple(PortRef(b, q) for b, d, q in cycle),
         ))
     return loops
-
-
-def _tarjan(nodes, edges):
-    index: dict = {}
-    low: dict = {}
-    on_stack: set = set()
-    stack: list = []
-    out: list = []
-    counter = [0]
-
-    def visit(v):
-        # iterative Tarjan (scenes are small, but avoid recursion limits anyway)
-        work = [(v, iter(edges[v]))]
-        index[v] = low[v] = counter[0]
-        counter[0] += 1
-        stack.append(v)
-        on_stack.add(v)
-        while work:
-            node, it = work[-1]
-            advanced = False
-            for w in it:
-                if w not in index:
-                    index[w] = low[w] = counter[0]
-                    counter[0] += 1
-                    stack.append(w)
-                    on_stack.add(w)
-                    work.append((w, iter(edges[w])))
-                    advanced = True
-                    break
-                if w in on_stack:
-                    low[node] = min(low[node], index[w])
-            if advanced:
-                continue
-            work.pop()
-            if work:
-                low[work[-1][0]] = min(low[work[-1][0]], low[node])
-            if low[node] == index[node]:
-                comp = []
-                while True:
-                    w = stack.pop()
-                    on_stack.discard(w)
-                    comp.append(w)
-                    if w == node:
-                        break
-                out.append(comp)
-
-    for v in nodes:
-        if v not in index:
-            visit(v)
-    return out
-
-
-def _cycle(start, members, edges):
-    """One cycle through `start` inside an SCC, starting at an output port for readability."""
-    outs = [m for m in members if m[1] == "out"]
-    if outs:
-        start = sorted(outs)[0]
-    prev = {start: None}
-    queue = [start]
-    found = None
-    while queue and found is None:
-        v = queue.pop(0)
-        for w in edges[v]:
-            if w == start:
-                found = v
-                break
-            if w in members and w not in prev:
-                prev[w] = v
-                queue.append(w)
-    path = []
-    v = found
-    while v is not None:
-        path.append(v)
-        v = prev[v]
-    return list(reversed(path))

@@ -18,11 +18,13 @@ bench/stability_map.py does); `master.passive_energy_factor = 0` the second.
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Sequence
+from typing import TYPE_CHECKING, Mapping, Sequence
 
 from .errors import StepError
+from .sccs import strongly_connected
 
 if TYPE_CHECKING:
+    from .block import Passivity
     from .graph import Plan
     from .units import Unit
 
@@ -35,10 +37,6 @@ SAMPLES_PER_RAMP = 25
 #: Jacobi and 10-30 ms under Gauss-Seidel with the Morison feather; the energy-consistent feather
 #: stays bounded to 30-50 ms and beyond but is inaccurate past these steps (docs/stability.md).
 LOOP_STEP_PER_TIME_CONSTANT = {"jacobi": 1.0, "gauss-seidel": 2.0}
-#: A passive block reports this output; its power ports are `<x>_torque_Nm` outputs paired with
-#: `<x>_rate_rad_s` inputs (the actuator's torque and the rate it imposes).
-ENERGY_OUTPUT = "mechanical_energy_J"
-TORQUE_SUFFIX, RATE_SUFFIX = "_torque_Nm", "_rate_rad_s"
 #: Gains below this are not judged (the feathers here hold 0.01-0.07 J).
 ENERGY_FLOOR_J = 1e-6
 
@@ -47,22 +45,20 @@ def _shortest_ramp(plan: "Plan") -> tuple[float, str] | None:
     ramps = []
     for name in plan.instantiate:
         rb = plan.blocks[name]
-        stroke = getattr(rb.obj, "stroke", None)
-        if rb.spec.kind == "stroke" and stroke is not None:
+        stroke = rb.stroke
+        if stroke is not None:
             ramps += [(stroke.t_up_s, f"{name}.t_up_s"), (stroke.t_down_s, f"{name}.t_down_s")]
     return min(ramps) if ramps else None
 
 
 def feedback_loops(plan: "Plan") -> list[list[str]]:
     """Groups of instantiated blocks that feed each other (strongly connected, through any port)."""
-    from .graph import _tarjan
-
     edges: dict[str, list[str]] = {n: [] for n in plan.instantiate}
     for dst, src in plan.source_of.items():
         a, b = plan.canonical(src).block, plan.canonical(dst).block
         if a in edges and b in edges and a != b:
             edges[a].append(b)
-    return [sorted(c) for c in _tarjan(list(edges), edges) if len(c) > 1]
+    return [sorted(c) for c in strongly_connected(list(edges), edges) if len(c) > 1]
 
 
 def _fastest_time_constant(plan: "Plan", blocks: Sequence[str]) -> tuple[float, str] | None:
@@ -164,19 +160,18 @@ class PassiveEnergyGuard:
                 "tighten master.rtol, or check the block's equations")
 
 
-def passive_energy_guards(units: dict[str, "Unit"], factor: float, judge_from_s: float) -> list[PassiveEnergyGuard]:
-    """A guard for every unit that reports its mechanical energy and takes its motion at power ports."""
+def passive_energy_guards(units: Mapping[str, "Unit"], passivity: Mapping[str, "Passivity | None"], factor: float,
+                          judge_from_s: float) -> list[PassiveEnergyGuard]:
+    """A guard for every unit whose block declares itself passive (ResolvedBlock.passivity)."""
     if factor <= 0:
         return []
     guards = []
-    for u in units.values():
-        if ENERGY_OUTPUT not in u.output_names:
+    for name, u in units.items():
+        declared = passivity.get(name)
+        if declared is None:
             continue
-        rates = [(k, out[: -len(TORQUE_SUFFIX)] + RATE_SUFFIX) for k, out in enumerate(u.output_names)
-                 if out.endswith(TORQUE_SUFFIX)]
-        pairs = [(k, u.input_names.index(rate)) for k, rate in rates if rate in u.input_names]
-        if pairs:
-            guards.append(PassiveEnergyGuard(u, u.output_names.index(ENERGY_OUTPUT), pairs, factor, judge_from_s))
+        pairs = [(u.output_names.index(out), u.input_names.index(inp)) for out, inp in declared.power_ports]
+        guards.append(PassiveEnergyGuard(u, u.output_names.index(declared.energy_output), pairs, factor, judge_from_s))
     return guards
 
 

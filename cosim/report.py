@@ -3,11 +3,12 @@ paper's Fig. 5 (thrust with the root angle, integrated thrust, thrust ratio per 
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from .jsonable import json_safe
 
 SUMMARY_ROWS = (
     ("thrust_ratio", "thrust ratio TR (Eq. 3)", "{:.4f}", 1.0, ""),
@@ -68,19 +69,6 @@ def _realtime_lines(summary: dict[str, Any]) -> list[str]:
     return lines
 
 
-def _jsonable(v: Any) -> Any:
-    if isinstance(v, dict):
-        return {str(k): _jsonable(x) for k, x in v.items()}
-    if isinstance(v, (list, tuple)):
-        return [_jsonable(x) for x in v]
-    if isinstance(v, (np.floating, float)):
-        f = float(v)
-        return f if math.isfinite(f) else str(f)
-    if isinstance(v, np.integer):
-        return int(v)
-    return v
-
-
 def write_outputs(result: Any, out_dir: str | Path, *, figure: bool = True) -> dict[str, Path]:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -89,15 +77,35 @@ def write_outputs(result: Any, out_dir: str | Path, *, figure: bool = True) -> d
     payload["complete"] = result.complete
     payload["info"] = result.info
     payload["scene_definition"] = result.scene.to_dict()
-    paths["summary"].write_text(json.dumps(_jsonable(payload), indent=2) + "\n")
+    paths["summary"].write_text(json.dumps(json_safe(payload), indent=2, allow_nan=False) + "\n")
     names = list(result.signals)
     header = ",".join(["time [s]"] + [f"{n} [{result.units.get(n, '')}]" for n in names])
-    data = np.column_stack([result.time] + [result.signals[n] for n in names]) if len(result.time) else np.zeros((0, 1 + len(names)))
-    np.savetxt(paths["results"], data, delimiter=",", header=header, comments="", fmt="%.10g")
+    columns = [result.time] + [result.signals[n] for n in names]
+    if all(c.dtype == np.float64 for c in columns):
+        data = np.column_stack(columns) if len(result.time) else np.zeros((0, 1 + len(names)))
+        np.savetxt(paths["results"], data, delimiter=",", header=header, comments="", fmt="%.10g")
+    else:  # FMU ports of other types: integers in full, Booleans 0/1, strings quoted, bytes in hex
+        import csv
+
+        with paths["results"].open("w", newline="") as fh:
+            fh.write(header + "\n")
+            writer = csv.writer(fh)
+            for row in zip(*columns):
+                writer.writerow([_cell(v) for v in row])
     if figure and len(result.time) > 1:
         paths["figure"] = out / "thrust.png"
         plot_run(result, paths["figure"])
     return paths
+
+
+def _cell(value: Any) -> str:
+    if isinstance(value, (bytes, bytearray)):
+        return bytes(value).hex()
+    if isinstance(value, (bool, np.bool_)):
+        return str(int(value))
+    if isinstance(value, (float, np.floating)):
+        return f"{float(value):.10g}"
+    return "" if value is None else str(value)
 
 
 def plot_run(result: Any, path: str | Path) -> None:

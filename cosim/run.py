@@ -1,8 +1,8 @@
-"""Running a scene: `run_scene(scene, overrides) -> RunResult`.
+"""Running a scene in one call: `run_scene(scene, overrides) -> RunResult`.
 
 The steps leave separate artefacts: the Scene (frozen data) → with overrides (a new Scene) →
-the Plan (resolved blocks, pruning, deduplication, loops; cosim.graph) → runtime units and a
-RunContext (cosim.master) → the RunResult (recorded signals, summary).
+the Plan (resolved blocks, pruning, deduplication, loops; cosim.graph) → a Simulator
+(cosim.simulator) driven from start to end → the RunResult (recorded signals, summary).
 """
 from __future__ import annotations
 
@@ -14,16 +14,15 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from .errors import RunInterrupted, SceneError, StepError
+from .context import Context
+from .errors import RunInterrupted, StepError
 from .graph import Plan, plan as make_plan
-from .master import RunContext, make_context
-from .strong import run_strong
-from .weak import run_weak
 from .metrics import scene_metrics
-from .preflight import cached_fmu, check_metric_window, check_run_size
-from .validity import apply_validity
+from .preflight import check_metric_window, check_run_size
 from .scene import Scene, load_scene
-from .units import ModelUnit, PyUnit, Unit
+from .simulator import Simulator
+from .units import Unit
+from .validity import apply_validity
 
 
 @dataclass
@@ -40,46 +39,6 @@ class RunResult:
 
     def __getitem__(self, name: str) -> np.ndarray:
         return self.signals[name]
-
-
-def _build_units(plan: Plan) -> dict[str, Unit]:
-    master = plan.scene.master
-    units: dict[str, Unit] = {}
-    for name in plan.instantiate:
-        rb = plan.blocks[name]
-        if rb.spec.kind == "recorder":
-            continue
-        if rb.obj is not None:
-            units[name] = PyUnit(rb.obj)
-        elif rb.model is not None and master.backend == "casadi":
-            units[name] = ModelUnit(name, rb.model, rb.parameters)
-        elif rb.model is not None:
-            from .fmu_block import FmuUnit, model_fmu_info
-
-            try:
-                from fmu_src.export import build_fmu
-            except ImportError as exc:
-                raise SceneError(f"block '{name}': FMU export is not available ({exc}); "
-                                 "set master.backend = casadi to run models in-process") from None
-            path = cached_fmu(rb.model, build_fmu, f"block '{name}'")
-            info = model_fmu_info(rb.model, Path(path), name)
-            units[name] = FmuUnit(name, info, rb.parameters, _fmu_mode(master.coupling, info, name))
-        elif rb.fmu_info is not None:
-            from .fmu_block import FmuUnit
-
-            units[name] = FmuUnit(name, rb.fmu_info, rb.parameters, _fmu_mode(master.coupling, rb.fmu_info, name))
-        else:  # pragma: no cover
-            raise SceneError(f"block '{name}' ({rb.spec.kind}) cannot be instantiated")
-    return units
-
-
-def _fmu_mode(coupling: str, info: Any, name: str) -> str:
-    if coupling == "strong":
-        if not info.has_me:
-            raise SceneError(f"block '{name}': the FMU has no Model Exchange interface, needed by "
-                             "master.coupling = strong; use jacobi or gauss-seidel")
-        return "me"
-    return "cs" if info.has_cs else "me"
 
 
 class _Progress:
@@ -126,49 +85,36 @@ def run_scene(
     check_run_size(plan)
     if strict_window or sc.master.realtime:
         check_metric_window(plan)
-    t0, t_end = 0.0, plan.t_end_s
-    t_build = time.perf_counter()
-    units = _build_units(plan)
-    ctx = make_context(plan, units)
-    ctx.stats["build_s"] = time.perf_counter() - t_build
-    bar = _Progress(t_end, sc.name) if progress else None
-    ctx.progress = bar
+    bar = _Progress(plan.t_end_s, sc.name) if progress else None
+    sim = Simulator(plan, progress=bar)
     error: StepError | None = None
-    started: list[Unit] = []
     try:
-        for u in units.values():
-            ctx.t = t0
-            started.append(u)
-            u.start(t0, t_end, sc.master.rtol)
-        if sc.master.coupling == "strong":
-            run_strong(ctx, t0, t_end)
-        else:
-            run_weak(ctx, t0, t_end)
+        sim.initialize(0.0)
+        sim.advance_to(plan.t_end_s)
     except StepError as exc:
         error = exc
     except KeyboardInterrupt as exc:   # Ctrl-C, or RunInterrupted raised by a signal handler
         cause = exc.signal_name if isinstance(exc, RunInterrupted) else "SIGINT"
-        error = StepError("master", ctx.t, f"interrupted by {cause}",
+        error = StepError("master", sim.t, f"interrupted by {cause}",
                           cause="the run was stopped from outside")
         error.interrupted = cause
     except Exception as exc:   # a bug must still close the blocks and keep the data
-        error = StepError("master", ctx.t, f"internal error: {type(exc).__name__}: {exc}",
+        error = StepError("master", sim.t, f"internal error: {type(exc).__name__}: {exc}",
                           cause="a defect in featherstar; please report it with the scene")
     finally:
-        for u in started:
-            u.close()
+        sim.close()
         if bar is not None:
             bar.close()
-    result = _result(plan, ctx, time.perf_counter() - wall0, overrides, error, units)
+    result = _result(plan, sim, time.perf_counter() - wall0, overrides, error)
     if error is not None:
         error.partial = result
         raise error
     return result
 
 
-def _loop_stats(ctx: RunContext) -> list[dict[str, Any]]:
+def _loop_stats(context: Context) -> list[dict[str, Any]]:
     merged: dict[str, dict[str, Any]] = {}
-    for solver in ctx.loop_solvers:  # one solver per schedule (rhs, recording, start): merge
+    for solver in context.loop_solvers:  # one solver per schedule (rhs, recording, start): merge
         entry = merged.setdefault(solver.description, {"loop": solver.description, "solves": 0, "iterations": 0})
         entry["solves"] += solver.solves
         entry["iterations"] += solver.iterations
@@ -182,14 +128,14 @@ def _hardware_events(units: Mapping[str, Unit]) -> list[dict[str, Any]]:
     return sorted(events, key=lambda e: float(e.get("t_s", 0.0)))
 
 
-def _realtime_summary(plan: Plan, ctx: RunContext, units: Mapping[str, Unit], t: np.ndarray,
+def _realtime_summary(plan: Plan, context: Context, units: Mapping[str, Unit], t: np.ndarray,
                       signals: Mapping[str, np.ndarray], summary: dict[str, Any],
                       finished: bool) -> bool:
     """Deadline misses, gaps and reconnects into the summary; the validity verdict when the
     run finished. Returns whether the run's result can be trusted."""
     sc = plan.scene
     events = _hardware_events(units)
-    late = ctx.late_steps
+    late = context.late_steps
     summary["deadline_misses"] = len(late)
     summary["worst_lateness_s"] = max((s for _, s in late), default=0.0)
     summary["gaps"] = sum(e.get("kind") == "gap" for e in events)
@@ -209,15 +155,13 @@ def _realtime_summary(plan: Plan, ctx: RunContext, units: Mapping[str, Unit], t:
     return apply_validity(summary, t, thrust, plan.period_s, sc.master.step_s, late, events)
 
 
-def _result(plan: Plan, ctx: RunContext, wall: float, overrides: Mapping[str, Any] | None,
-            error: StepError | None, units: Mapping[str, Unit] | None = None) -> RunResult:
+def _result(plan: Plan, sim: Simulator, wall: float, overrides: Mapping[str, Any] | None,
+            error: StepError | None) -> RunResult:
     sc = plan.scene
+    context, units = sim.context, sim.units
     # An interrupt can land between a time stamp and its row: keep whole samples only.
-    n = min(len(ctx.rows), len(ctx.times))
-    del ctx.rows[n:], ctx.times[n:]
-    t = np.asarray(ctx.times, dtype=float)
-    data = np.asarray(ctx.rows, dtype=float).reshape(n, len(plan.requested))
-    signals = {str(ref): data[:, j].copy() for j, ref in enumerate(plan.requested)}
+    t, signals = sim.recorded()
+    n = len(t)
     port_units = {str(ref): plan.blocks[ref.block].outputs[ref.port].unit
                   for ref in plan.requested}
     summary: dict[str, Any] = {
@@ -237,7 +181,7 @@ def _result(plan: Plan, ctx: RunContext, wall: float, overrides: Mapping[str, An
         summary.update(error=str(error), failed_block=error.block, failed_at_s=error.t_s)
     complete = error is None
     if sc.master.realtime:
-        trusted = _realtime_summary(plan, ctx, units or {}, t, signals, summary,
+        trusted = _realtime_summary(plan, context, units, t, signals, summary,
                                     finished=error is None and n > 1)
         if error is None and not trusted:
             complete = False
@@ -248,8 +192,8 @@ def _result(plan: Plan, ctx: RunContext, wall: float, overrides: Mapping[str, An
         "pruned": list(plan.pruned),
         "notes": list(plan.notes),
         "ignored": [f"{n}: {note}" for n in plan.instantiate for note in plan.blocks[n].notes],
-        "stats": dict(ctx.stats),
-        "loops": _loop_stats(ctx),
+        "stats": dict(context.stats),
+        "loops": _loop_stats(context),
         "overrides": {k: str(v) for k, v in (overrides or {}).items()},
         "scene_fingerprint": sc.fingerprint(),
     }

@@ -2,25 +2,26 @@
 algebraic loops solved by Newton iteration on their inputs (shared by both couplings)."""
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Callable, Sequence
+import math
+from typing import Callable, Sequence
 
 import numpy as np
 
+from .context import Context
 from .errors import StepError
-from .graph import _tarjan
-from .scene import PortRef
+from .sccs import cycle_through, strongly_connected
+from .system import System
 from .units import Unit
-
-if TYPE_CHECKING:
-    from .master import RunContext
 
 
 class LoopSolver:
     """Newton iteration (finite-difference Jacobian) on the inputs of an algebraic loop."""
 
-    def __init__(self, ctx: "RunContext", description: str, tear: list[tuple[Unit, int, Unit, int]],
+    def __init__(self, context: Context, tol: float, max_iter: int, description: str,
+                 tear: list[tuple[Unit, int, Unit, int]],
                  setters: list[Callable[[], None]], getters: list[Callable[[], None]]) -> None:
-        self.ctx = ctx
+        self.context = context
+        self.tol, self.max_iter = tol, max_iter
         self.description = description
         self.tear = tear
         self.setters = setters
@@ -29,6 +30,7 @@ class LoopSolver:
         self.v = np.array([u.inbuf[i] for u, i, _, _ in tear], dtype=float)
         self.iterations = 0
         self.solves = 0
+        self.block = ",".join(dict.fromkeys(u.name for u, _, _, _ in tear))  # named in errors
 
     def _g(self, v: np.ndarray) -> np.ndarray:
         for j, (u, i, _, _) in enumerate(self.tear):
@@ -40,20 +42,20 @@ class LoopSolver:
         return np.array([src.outbuf[k] for _, _, src, k in self.tear], dtype=float)
 
     def __call__(self) -> None:
-        tol, max_iter = self.ctx.plan.scene.master.loop_tol, self.ctx.plan.scene.master.loop_max_iter
+        tol, max_iter = self.tol, self.max_iter
         v = self.v.copy()
         r = self._g(v) - v
         it = 0
         while True:
             scale = 1.0 + float(np.max(np.abs(v)))
             if not np.all(np.isfinite(r)):
-                raise StepError(self.ctx.loop_block(self), self.ctx.t,
+                raise StepError(self.block, self.context.t,
                                 f"algebraic loop {self.description} produced NaN/inf",
                                 cause="the loop diverged; its gain may exceed 1 or the blocks are invalid here")
             if float(np.max(np.abs(r))) <= tol * scale:
                 break
             if it >= max_iter:
-                raise StepError(self.ctx.loop_block(self), self.ctx.t,
+                raise StepError(self.block, self.context.t,
                                 f"algebraic loop {self.description} did not converge in {max_iter} Newton "
                                 f"iterations (residual {float(np.max(np.abs(r))):.3g})",
                                 cause="no solution near the previous one; break the loop with a filter")
@@ -68,7 +70,7 @@ class LoopSolver:
                     raise np.linalg.LinAlgError
                 step = np.linalg.solve(jac, -r)
             except np.linalg.LinAlgError:
-                raise StepError(self.ctx.loop_block(self), self.ctx.t,
+                raise StepError(self.block, self.context.t,
                                 f"algebraic loop {self.description} has no unique solution (singular "
                                 "iteration Jacobian: the loop gain is 1)",
                                 cause="an unsolvable algebraic loop; break it with a block that has state") from None
@@ -89,23 +91,21 @@ class LoopSolver:
         self.solves += 1
 
 
-def topo_schedule(ctx: "RunContext", units: Sequence[Unit], out_nodes: set[tuple[str, int]],
-                   skip_static: bool = False) -> list[Callable[[], None]]:
+def topo_schedule(system: System, context: Context, units: Sequence[Unit], out_nodes: set[tuple[str, int]],
+                  skip_static: bool = False) -> list[Callable[[], None]]:
     """Ops (closures) that set every input of `units` and evaluate the outputs in `out_nodes`
     (plus the outputs those inputs need) in dependency order, loops solved by LoopSolver.
     skip_static: leave out constant blocks and the inputs they drive (set once at the start;
     input values persist in every unit)."""
-    plan = ctx.plan
     src_of: dict[tuple[str, int], tuple[str, int]] = {}
     for u in units:
-        for i, name in enumerate(u.input_names):
-            src = plan.driver(PortRef(u.name, name))
-            su = ctx.units[src.block]
-            if skip_static and su.static:
+        for i in range(len(u.input_names)):
+            sb, k = system.source_of(u, i)
+            if skip_static and system.units[sb].static:
                 continue
-            src_of[(u.name, i)] = (su.name, su.output_names.index(src.port))
+            src_of[(u.name, i)] = (sb, k)
     if skip_static:
-        out_nodes = {(b, k) for b, k in out_nodes if not ctx.units[b].static}
+        out_nodes = {(b, k) for b, k in out_nodes if not system.units[b].static}
     need_out = set(out_nodes) | set(src_of.values())
     nodes: list[tuple[str, str, int]] = []
     edges: dict[tuple[str, str, int], list[tuple[str, str, int]]] = {}
@@ -116,12 +116,12 @@ def topo_schedule(ctx: "RunContext", units: Sequence[Unit], out_nodes: set[tuple
         nodes.append((b, "out", k))
         edges[(b, "out", k)] = []
     for (b, k) in sorted(need_out):
-        for i in ctx.feedthrough[b][k]:
+        for i in system.feedthrough[b][k]:
             if (b, "in", i) in edges:  # absent: an input driven by a constant (set once)
                 edges[(b, "in", i)].append((b, "out", k))
     for (b, i), (sb, k) in src_of.items():
         edges[(sb, "out", k)].append((b, "in", i))
-    sccs = _tarjan(nodes, edges)
+    sccs = strongly_connected(nodes, edges)
     comp_of = {}
     for ci, comp in enumerate(sccs):
         for n in comp:
@@ -144,7 +144,7 @@ def topo_schedule(ctx: "RunContext", units: Sequence[Unit], out_nodes: set[tuple
             comp = sccs[ci]
             n = comp[0]
             single = len(comp) == 1
-            source = single and n[1] == "out" and not ctx.units[n[0]].input_names
+            source = single and n[1] == "out" and not system.units[n[0]].input_names
             same = last is not None and single and (n[0], n[1]) == last
             # grouped by unit and direction to coalesce calls; sources first; then inputs (a
             # unit's inputs set before its outputs are read, so an FMU evaluates once)
@@ -167,9 +167,9 @@ def topo_schedule(ctx: "RunContext", units: Sequence[Unit], out_nodes: set[tuple
             return
         b, kind, _ = pending[0]
         idx = [n[2] for n in pending]
-        u = ctx.units[b]
+        u = system.units[b]
         if kind == "in":
-            ops.append(setter_op(ctx, u, idx, src_of))
+            ops.append(setter_op(system, u, idx, src_of))
         else:
             ops.append(u.output_getter(idx))
         pending.clear()
@@ -184,18 +184,26 @@ def topo_schedule(ctx: "RunContext", units: Sequence[Unit], out_nodes: set[tuple
             pending.append(n)
             continue
         flush()
-        ops.append(loop_op(ctx, comp, src_of, edges))
+        ops.append(loop_op(system, context, comp, src_of, edges))
     flush()
     return ops
 
 
-def setter_op(ctx: "RunContext", u: Unit, idx: list[int], src_of: dict) -> Callable[[], None]:
+def setter_op(system: System, u: Unit, idx: list[int], src_of: dict) -> Callable[[], None]:
+    """An op that copies the driving outputs into inputs `idx` of u and pushes them to its model."""
     gathers = []
     for i in idx:
         sb, k = src_of[(u.name, i)]
-        gathers.append((i, ctx.units[sb].outbuf, k))
-    push = u.input_setter(idx)
+        gathers.append((i, system.units[sb].outbuf, k))
+    raw_push = u.input_setter(idx)
     inbuf = u.inbuf
+
+    def push() -> None:
+        try:
+            raw_push()
+        except StepError as exc:
+            raise _non_finite_origin(system, u, idx, src_of) or exc from None
+
     if len(gathers) == 1:
         (i0, src0, k0), = gathers
 
@@ -211,7 +219,21 @@ def setter_op(ctx: "RunContext", u: Unit, idx: list[int], src_of: dict) -> Calla
     return op
 
 
-def loop_op(ctx: "RunContext", comp: list, src_of: dict, edges: dict) -> LoopSolver:
+def _non_finite_origin(system: System, u: Unit, idx: list[int], src_of: dict) -> StepError | None:
+    """When a block refuses a NaN/inf input (featherstar's own FMUs do), the block that produced
+    it is where the run failed, not the one that would not compute with it."""
+    for i in idx:
+        value = u.inbuf[i]
+        if not math.isfinite(value):
+            sb, k = src_of[(u.name, i)]
+            src = system.units[sb]
+            return StepError(sb, u.t, f"output {src.output_names[k]} = {value}",
+                             cause=f"the block produced NaN/inf ({u.name}.{u.input_names[i]} refused it): its "
+                             "model blew up, divided by zero, or got invalid parameters or inputs")
+    return None
+
+
+def loop_op(system: System, context: Context, comp: list, src_of: dict, edges: dict) -> LoopSolver:
     members = set(comp)
     tear = []
     setters, getters = [], []
@@ -220,51 +242,22 @@ def loop_op(ctx: "RunContext", comp: list, src_of: dict, edges: dict) -> LoopSol
     for b, kind, i in sorted(comp):
         (ins if kind == "in" else outs).setdefault(b, []).append(i)
     for b, idx in ins.items():
-        u = ctx.units[b]
+        u = system.units[b]
         for i in idx:
             sb, k = src_of[(b, i)]
-            tear.append((u, i, ctx.units[sb], k))
+            tear.append((u, i, system.units[sb], k))
         setters.append(u.input_setter(idx))
     for b, idx in outs.items():
-        getters.append(ctx.units[b].output_getter(idx))
+        getters.append(system.units[b].output_getter(idx))
     # describe one cycle port by port
-    from .graph import _cycle
-
-    cyc = _cycle(comp[0], members, edges)
+    cyc = cycle_through(comp[0], members, edges)
 
     def port_name(n: tuple[str, str, int]) -> str:
-        u = ctx.units[n[0]]
+        u = system.units[n[0]]
         return f"{n[0]}.{(u.input_names if n[1] == 'in' else u.output_names)[n[2]]}"
 
     text = " -> ".join(port_name(n) for n in (*cyc, cyc[0]))
-    solver = LoopSolver(ctx, text, tear, setters, getters)
-    ctx.loop_solvers.append(solver)
+    master = system.master
+    solver = LoopSolver(context, master.loop_tol, master.loop_max_iter, text, tear, setters, getters)
+    context.loop_solvers.append(solver)
     return solver
-
-
-def input_sources(ctx: RunContext, u: Unit) -> dict[tuple[str, int], tuple[str, int]]:
-    out = {}
-    for i, name in enumerate(u.input_names):
-        src = ctx.plan.driver(PortRef(u.name, name))
-        out[(u.name, i)] = (src.block, ctx.units[src.block].output_names.index(src.port))
-    return out
-
-
-def flow_order(ctx: RunContext, units: Sequence[Unit]) -> list[Unit]:
-    """Units in signal-flow order (sources first); feedback edges broken at the latest unit."""
-    names = [u.name for u in units]
-    preds = {n: set() for n in names}
-    for u in units:
-        for name in u.input_names:
-            src = ctx.plan.driver(PortRef(u.name, name)).block
-            if src != u.name:
-                preds[u.name].add(src)
-    order: list[str] = []
-    remaining = list(names)
-    while remaining:
-        ready = [n for n in remaining if not (preds[n] - set(order))]
-        if not ready:  # a feedback cycle: take the unit with the fewest unmet predecessors
-            ready = [min(remaining, key=lambda n: (len(preds[n] - set(order)), remaining.index(n)))]
-        order.append(ready[0])
-        remaining.remove(ready[0])
-    return [ctx.units[n] for n in order]

@@ -17,8 +17,8 @@ FMUs are in cosim.fmu_block (the only module that calls fmpy).
 from __future__ import annotations
 
 import ctypes
-import math
 from ctypes import c_double
+from dataclasses import dataclass
 from typing import Any, Callable, Sequence
 
 import numpy as np
@@ -28,6 +28,18 @@ from .errors import StepError
 
 def _buffer(n: int) -> ctypes.Array:
     return (c_double * max(n, 1))()
+
+
+@dataclass(frozen=True)
+class FastPath:
+    """The three calls the strong coupling's right-hand side makes, bound once per run: set the
+    time, set the continuous states from an address, write the derivatives to an address. A unit
+    offers the quickest form it has (an FMU: its raw FMI entry points); each raises StepError on
+    a failed call, as the unit's methods do."""
+
+    set_time: Callable[[float], None]
+    set_states: Callable[[int], None]
+    get_derivatives: Callable[[int], None]
 
 
 class Unit:
@@ -40,6 +52,7 @@ class Unit:
     n_states = 0
     n_events = 0
     needs_completed_step = False
+    has_discrete_inputs = False  # ME FMUs: inputs settable in event mode only (cosim.strong)
 
     def __init__(self, name: str, input_names: Sequence[str], output_names: Sequence[str]) -> None:
         self.name = name
@@ -76,6 +89,9 @@ class Unit:
     def get_derivatives(self, address: int) -> None:
         pass
 
+    def fast_path(self) -> FastPath:
+        return FastPath(self.set_time, self.set_states, self.get_derivatives)
+
     def state_names(self) -> list[str]:
         return []
 
@@ -92,6 +108,10 @@ class Unit:
 
     def next_time_event(self) -> float | None:
         return None
+
+    def discrete_inputs_changed(self) -> bool:
+        """True when a discrete input's value in inbuf waits to be set in event mode (ME FMUs)."""
+        return False
 
     # CS
     def do_step(self, t: float, h: float) -> None:
@@ -122,11 +142,9 @@ class PyUnit(Unit):
         self.can_iterate = _ci(block)
         self.can_rollback = self.memoryless or (hasattr(block, "get_state") and hasattr(block, "set_state"))
         self._inputs = {n: 0.0 for n in self.input_names}
-        motion = getattr(block, "motion", None)
-        if self.memoryless and motion is not None and self.output_names == ["angle_rad", "rate_rad_s", "accel_rad_s2"]:
-            self._fast = motion  # the stroke controller: skip the dicts in the hot loop
-        else:
-            self._fast = None
+        # a memoryless block without inputs may offer outputs_at(t_s) -> its output values in
+        # `outputs` order (the stroke controller): the hot loop then skips the dicts
+        self._fast = getattr(block, "outputs_at", None) if self.memoryless and not self.input_names else None
 
     def start(self, t0: float, t_end: float, rtol: float) -> None:
         self.t = t0
@@ -165,8 +183,14 @@ class PyUnit(Unit):
         if self._fast is not None:
             fast = self._fast
 
-            def get() -> None:
-                outbuf[0], outbuf[1], outbuf[2] = fast(self.t)
+            n = len(self.output_names)
+            if n == 3:
+                def get() -> None:
+                    outbuf[0], outbuf[1], outbuf[2] = fast(self.t)
+            else:
+                def get() -> None:
+                    for i, v in enumerate(fast(self.t)[:n]):
+                        outbuf[i] = v
             return get
         if self.memoryless:
             evaluate, inputs = self.block.evaluate, self._inputs
@@ -281,10 +305,3 @@ class ModelUnit(Unit):
         self.x[:] = x
         self.u[:] = u
         self._y_valid = False
-
-
-def all_finite(buf: ctypes.Array, n: int) -> bool:
-    s = 0.0
-    for i in range(n):
-        s += buf[i]
-    return math.isfinite(s)

@@ -1,6 +1,6 @@
-"""`featherstar build [MODEL ...] [--out DIR] [--force]`: the catalog's models as FMI 3.0 FMUs.
+"""`featherstar build [MODEL ...] [--fmi {2,3}] [--out DIR] [--force]`: the catalog's models as FMUs.
 
-The `featherstar` entry point (cosim.cli) owns the parser; this module only adds its
+The `featherstar` entry point (featherstar.app) owns the parser; this module only adds its
 subcommand, so that building FMUs needs nothing from cosim.
 """
 from __future__ import annotations
@@ -16,11 +16,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the `build` subcommand; it dispatches through `args.func(args)`."""
     parser = subparsers.add_parser(
         "build",
-        help="build FMI 3.0 FMUs (Model Exchange + Co-Simulation) of catalog models",
+        help="build FMI 3.0 or 2.0 FMUs (Model Exchange + Co-Simulation) of catalog models",
         description="Build FMUs of the named catalog models (all when none are named) and "
         "print their paths. Unchanged models come from the build cache "
         "($FEATHERSTAR_CACHE, default ~/.cache/featherstar/fmus).",
     )
+    parser.add_argument("--fmi", type=int, choices=(2, 3), default=3, metavar="{2,3}",
+                        help="FMI version: 3 (default) or 2, for importers that only read FMI 2.0 "
+                        "(PyFMI, OMSimulator, libcosim, ...)")
     parser.add_argument("models", nargs="*", metavar="MODEL", help="catalog model name (default: all)")
     parser.add_argument("--out", type=Path, help="directory for <model>.fmu (default: the cache itself)")
     parser.add_argument("--force", action="store_true", help="rebuild even when a cached FMU is current")
@@ -35,7 +38,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
             parser.error(f"unknown model(s) {', '.join(unknown)}; known models: {', '.join(MODELS)}")
         for name in args.models or list(MODELS):
             try:
-                print(build_fmu(MODELS[name](), args.out, force=args.force), flush=True)
+                print(build_fmu(MODELS[name](), args.out, force=args.force, fmi_version=args.fmi), flush=True)
             except FeatherstarError as error:
                 print(f"featherstar build: {name}: {error}", file=sys.stderr)
                 return 1

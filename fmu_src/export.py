@@ -30,20 +30,26 @@ import fmpy
 
 from .errors import BuildError
 from .model import Model
+from .shell_tables import variable_tables
 
 SHELL_DIR = Path(__file__).parent / "c"
 SHELL_HEADER = "fmi3_shell.h"
 SHELL_SOURCES = (
-    "fmi3_shell.c", "fmi3_model_exchange.c", "fmi3_cosim.c", "fmi3_state.c", "fmi3_unsupported.c"
+    "fmi3_shell.c", "fmi3_variables.c", "fmi3_model_exchange.c", "fmi3_cosim.c", "fmi3_state.c",
+    "fmi3_unsupported.c",
 )
+# An FMI 2.0 FMU is the same shell behind this adapter; the shell's fmi3 functions stay hidden.
+FMI2_ADAPTER = "fmi2_adapter.c"
+FMI2_PLATFORM = "linux64"  # FMI 2.0's name for the binaries' folder
+FMI_VERSIONS = (2, 3)
 PLATFORM = "x86_64-linux"
 FMI_HEADERS = Path(fmpy.__file__).parent / "c-code"
 # Hidden visibility leaves only the shell's fmi3* functions exported: CasADi's globals
 # (`start`, `evaluate`, the model functions) would otherwise be visible to the whole process.
 CFLAGS = ("-O2", "-fPIC", "-fvisibility=hidden", "-DCASADI_SYMBOL_EXPORT=")
 
-# Above this much C, the model function itself is compiled at -O1 (see _prepare_model_source).
-_HUGE_MODEL_BYTES = 3_000_000
+#: Above this much C, the model function itself is compiled at -O1 (see _prepare_model_source).
+HUGE_MODEL_BYTES = 600_000
 
 # Defined in the wrap source (with the instantiation token the shell checks importers against)
 # rather than on the command line, so that sources/ stays buildable from buildDescription.xml
@@ -75,10 +81,18 @@ static void fs_set_states(void* memory, double t, const double* x) {
   if (x) for (i = 0; i < N_X; ++i) m->v[x_vr[i]] = x[i];
   m->up_to_date = 0;
 }
+static const double* fs_values(const void* memory) { return ((const casadi_fmi_memory*)memory)->v; }
+static int fs_evaluate(void* memory) {
+  casadi_fmi_memory* m = (casadi_fmi_memory*)memory;
+  if (evaluate(m)) return 1;
+  m->up_to_date = 1;
+  return 0;
+}
 const fs_model* fs_model_info(void) {
   static const fs_model info = {FS_INSTANTIATION_TOKEN, sizeof(casadi_fmi_memory),
                                 N_VAR, N_X, N_U, N_P, N_ZERO,
-                                var_offset, x_vr, u_vr, p_vr, fs_rhs, fs_get_states, fs_set_states};
+                                var_offset, x_vr, u_vr, p_vr, N_Y, y_vr, fs_limit_by_vr, fs_var_name,
+                                fs_rhs, fs_get_states, fs_set_states, fs_values, fs_evaluate};
   return &info;
 }
 """
@@ -99,22 +113,26 @@ def cache_dir() -> Path:
     return Path(root) if root else Path.home() / ".cache" / "featherstar" / "fmus"
 
 
-def build_fmu(model: Model, out_dir: Path | None = None, *, force: bool = False) -> Path:
-    """Build `<out_dir>/<model.name>.fmu` (or return the cached FMU when out_dir is None).
+def build_fmu(model: Model, out_dir: Path | None = None, *, force: bool = False, fmi_version: int = 3) -> Path:
+    """Build `<out_dir>/<model.name>.fmu` (or return the cached FMU when out_dir is None), an
+    FMI 3.0 FMU or (fmi_version=2) an FMI 2.0 one; both hold Model Exchange and Co-Simulation.
 
     An unchanged model is not rebuilt unless `force`. Files appear atomically, so concurrent
     builders and readers of the same FMU never see a partial file. Raises BuildError.
     """
+    if fmi_version not in FMI_VERSIONS:
+        raise BuildError(f"FMI version {fmi_version!r} cannot be built; choose one of {FMI_VERSIONS}")
     # Read once: the key and the build must see the same shell, even if it is edited meanwhile.
-    shell = {name: (SHELL_DIR / name).read_bytes() for name in (SHELL_HEADER, *SHELL_SOURCES)}
-    cached = cache_dir() / _cache_key(model, shell) / f"{model.name}.fmu"
+    names = (SHELL_HEADER, *SHELL_SOURCES, *((FMI2_ADAPTER,) if fmi_version == 2 else ()))
+    shell = {name: (SHELL_DIR / name).read_bytes() for name in names}
+    cached = cache_dir() / _cache_key(model, shell, fmi_version) / f"{model.name}.fmu"
     cached.parent.mkdir(parents=True, exist_ok=True)
     # The lock only saves duplicate work between processes; atomic renames keep files whole.
     with open(cached.parent / ".lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
         if force or not cached.exists():
             with tempfile.TemporaryDirectory(prefix="featherstar-fmu-") as tmp:
-                _atomic_copy(_build(model, shell, Path(tmp)), cached)
+                _atomic_copy(_build(model, shell, Path(tmp), fmi_version), cached)
     if out_dir is None:
         return cached
     target = Path(out_dir) / f"{model.name}.fmu"
@@ -124,14 +142,16 @@ def build_fmu(model: Model, out_dir: Path | None = None, *, force: bool = False)
     return target
 
 
-def _cache_key(model: Model, shell: dict[str, bytes]) -> str:
-    digest = hashlib.sha256(f"{ca.__version__} {PLATFORM} {CFLAGS}".encode())
+def _cache_key(model: Model, shell: dict[str, bytes], fmi_version: int) -> str:
+    digest = hashlib.sha256(f"{ca.__version__} {PLATFORM} {CFLAGS} FMI{fmi_version}".encode())
     for name, source in sorted(shell.items()):
         digest.update(name.encode() + source)
-    digest.update(Path(__file__).read_bytes())
+    for module in ("export.py", "shell_tables.py", *(("fmi2_description.py",) if fmi_version == 2 else ())):
+        digest.update((Path(__file__).parent / module).read_bytes())
     # The fingerprint covers equations and variable metadata but not the model's own text.
     digest.update(f"{model.name}\0{model.description}".encode())
-    return f"{model.name}-{model.fingerprint()}-{digest.hexdigest()[:12]}"
+    version = "" if fmi_version == 3 else f"fmi{fmi_version}-"
+    return f"{model.name}-{version}{model.fingerprint()}-{digest.hexdigest()[:12]}"
 
 
 def _same_bytes(a: Path, b: Path) -> bool:
@@ -150,7 +170,7 @@ def _atomic_copy(source: Path, target: Path) -> None:
         raise
 
 
-def _build(model: Model, shell: dict[str, bytes], work: Path) -> Path:
+def _build(model: Model, shell: dict[str, bytes], work: Path, fmi_version: int) -> Path:
     # CasADi only accepts C identifiers as function names, so the model name is one.
     identifier = model.name
     files = _export_sources(model, identifier, work)
@@ -159,14 +179,24 @@ def _build(model: Model, shell: dict[str, bytes], work: Path) -> Path:
     wrap = work / f"{identifier}_wrap.c"
     token = ET.parse(xml_path).getroot().get("instantiationToken", "")
     prefix = _WRAP_PREFIX + f'#define FS_INSTANTIATION_TOKEN "{token}"\n'
-    wrap.write_text(prefix + wrap.read_text() + _WRAP_HOOKS)
+    tables = variable_tables(model, ET.parse(xml_path).getroot())
+    wrap.write_text(prefix + wrap.read_text() + tables + _WRAP_HOOKS)
     model_flags = _prepare_model_source(work / f"{identifier}.c", identifier)
     for name, source in shell.items():
         (work / name).write_bytes(source)
         files[name] = f"sources/{name}"
-    _add_shell_to_build_description(work / "buildDescription.xml")
-    library = _compile(work, identifier, model_flags)
-    files[library.name] = f"binaries/{PLATFORM}/{library.name}"
+    if fmi_version == 2:
+        from .fmi2_description import fmi2_model_description
+
+        xml_path.write_text(fmi2_model_description(xml_path.read_text()))
+        # buildDescription.xml and extra/ are FMI 3.0 features.
+        files = {local: archived for local, archived in files.items()
+                 if not archived.startswith("extra/") and archived != "sources/buildDescription.xml"}
+    else:
+        _add_shell_to_build_description(work / "buildDescription.xml")
+    library = _compile(work, identifier, model_flags, [name for name in shell if name.endswith(".c")], fmi_version)
+    platform = PLATFORM if fmi_version == 3 else FMI2_PLATFORM
+    files[library.name] = f"binaries/{platform}/{library.name}"
     fmu = work / f"{model.name}.fmu"
     with zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as archive:
         for local, archived in sorted(files.items(), key=lambda item: item[1]):
@@ -185,10 +215,11 @@ def _export_sources(model: Model, identifier: str, work: Path) -> dict[str, str]
         "parameters": [[p.name, p.default] for p in model.parameters],
         "outputs": [v.name for v in model.outputs],
     }
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join(
-        filter(None, [str(Path(__file__).parents[1]), os.environ.get("PYTHONPATH")])))
+    # the child imports this module by its full name: put the folder holding its top package on the path
+    top = Path(__file__).parents[__name__.count(".")]
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(top), os.environ.get("PYTHONPATH")])))
     result = subprocess.run(
-        [sys.executable, "-c", "from fmu_src.export import _export_worker; _export_worker()"],
+        [sys.executable, "-c", f"from {__name__} import _export_worker; _export_worker()"],
         input=json.dumps(spec), capture_output=True, text=True, cwd=work, env=env,
     )
     if result.returncode != 0:
@@ -217,14 +248,17 @@ def _export_worker() -> None:
     json.dump(dae.export_fmu({"no_warning": True}), sys.stdout)
 
 
-def _compile(work: Path, identifier: str, model_flags: tuple[str, ...]) -> Path:
+def _compile(work: Path, identifier: str, model_flags: tuple[str, ...], shell_sources: list[str],
+             fmi_version: int) -> Path:
     """Compile each translation unit in parallel, then link; BuildError with gcc's stderr."""
-    sources = [f"{identifier}.c", f"{identifier}_wrap.c", *SHELL_SOURCES]
+    sources = [f"{identifier}.c", f"{identifier}_wrap.c", *shell_sources]
     include = [f"-I{FMI_HEADERS}", f"-I{work}"]
+    # An empty FMI3_Export leaves the fmi3 functions hidden behind the FMI 2.0 adapter.
+    version_flags = ("-DFMI3_Export=",) if fmi_version == 2 else ()
     jobs: list[tuple[str, subprocess.Popen[str]]] = []
     try:
         for src in sources:
-            flags = (*CFLAGS, *model_flags) if src == sources[0] else CFLAGS
+            flags = (*CFLAGS, *version_flags, *(model_flags if src == sources[0] else ()))
             command = ["gcc", *flags, *include, "-c", src, "-o", f"{src}.o"]
             jobs.append((src, subprocess.Popen(command, cwd=work, stderr=subprocess.PIPE, text=True)))
         stderrs = [job.communicate()[1] for _, job in jobs]
@@ -258,8 +292,8 @@ def _prepare_model_source(source: Path, identifier: str) -> tuple[str, ...]:
     model function and at -O2 takes many minutes for a 20-state feather, yet it only serves
     fmi3GetDirectionalDerivative / fmi3GetAdjointDerivative: it is compiled without
     optimization. The model function, which the integrators call, keeps -O2 unless it is huge:
-    for 9 MB of C (42-state feather) -O2 took 100 s, -O1 with priority colouring 11 s, and
-    evaluation is only ~1.4x slower. CasADi writes the derivatives after the model function,
+    for the 0.8 MB of the chordwise feather at N = 40 (O(N) chain solve) -O2 took 32 s, -O1 with
+    priority colouring 8 s, and evaluation is ~1.2x slower (bench/feather_speed.py). CasADi writes the derivatives after the model function,
     headed by a `/* fwd1_<id>:(...` comment; without it, everything is the model function.
     """
     text = source.read_text()
@@ -268,7 +302,7 @@ def _prepare_model_source(source: Path, identifier: str) -> tuple[str, ...]:
         source.write_text(text[:model_part] + '#pragma GCC optimize ("O0")\n' + text[model_part:])
     else:
         model_part = len(text)
-    return ("-O1", "-fira-algorithm=priority") if model_part > _HUGE_MODEL_BYTES else ()
+    return ("-O1", "-fira-algorithm=priority") if model_part > HUGE_MODEL_BYTES else ()
 
 
 def _add_shell_to_build_description(path: Path) -> None:
@@ -313,7 +347,9 @@ def _patch_model_description(text: str, model: Model, identifier: str) -> str:
             ET.SubElement(element, "BaseUnit", {k: str(v) for k, v in base.items()})
     log_categories = ET.Element("LogCategories")
     ET.SubElement(log_categories, "Category", name="logStatusError",
-                  description="Calls out of sequence, bad arguments, failed steps")
+                  description="Calls out of sequence, bad arguments (NaN, out-of-range parameters), failed steps")
+    ET.SubElement(log_categories, "Category", name="logStatusDiscard",
+                  description="A result is not finite: retry with a shorter step or other inputs")
     root.insert(position + 1, unit_defs)
     root.insert(position + 2, log_categories)
 

@@ -6,15 +6,16 @@ rigid with the actuator and the tip link is half length (f1, f2 within 1 % of Eu
 N = 10). Each link carries quadrature points; each point has structural mass, added mass along its
 surface normal, a normal-drag area, a drag coefficient and a net-buoyancy volume. Chordwise flaps
 add a fold angle per link whose flap points move out of the plane (z); spanwise flaps put a
-one-way hinge at l_root, the part inside it held rigid by the support. Every point's position is a CasADi expression of the root angle θ0 and the generalised
-coordinates Q, so velocities, accelerations and the mass matrix follow from exact Jacobians:
+one-way hinge at l_root, the part inside it held rigid by the support. The generalised
+coordinates Q are the joint and fold angles; the equations are Lagrange's,
 
     M(Q) Q̈ = Σ_p [J_pᵀ F_p − b_p] − τ_internal,   M = Σ_p J_pᵀ (m_p I + m_a,p n_p n_pᵀ) J_p,
 
 where b_p holds the inertial and fluid-reactive terms not proportional to Q̈ (`fmu_src.fluid`:
 the fluid force follows from the fluid's kinetic energy ½ Σ m_a v_n², so it conserves energy and
-its mean over a periodic motion is zero). Added mass sits in the mass matrix because it is
-100–160× the structural mass: applied explicitly from a lagged acceleration it is unstable.
+its mean over a periodic motion is zero), solved along the chain in O(N) without forming M
+(`fmu_src.chain`). Added mass sits on the inertia side because it is 100–160× the structural
+mass: applied explicitly from a lagged acceleration it is unstable.
 The load cell reads ŷ·Σ_p (F_drag,p − d/dt(m_p v_p + m_a,p v_n,p n_p)): the momentum balance of
 structure plus fluid impulse; the static buoyancy is tared away exactly.
 """
@@ -27,8 +28,8 @@ import casadi as ca
 from .errors import ModelError
 from .model import Model, Parameter, Variable
 from .contact import one_way_stop
-from .fluid import Point, dnv_added_mass_coeff, oscillatory_drag_coeff, point_dynamics, stroke_keulegan_carpenter
-from .linalg import ldl_solve
+from .chain import ChainMotion, Link, PlatePoint, solve_chain
+from .fluid import dnv_added_mass_coeff, oscillatory_drag_coeff, stroke_keulegan_carpenter
 
 MORPHOLOGIES = ("plain", "chordwise", "spanwise")
 GAUSS = (0.5 - 0.5 / math.sqrt(3.0), 0.5 + 0.5 / math.sqrt(3.0))
@@ -154,73 +155,39 @@ def feather_model(morphology: str = "plain", n_units: int = 10, root_support: bo
     Q = ca.vertcat(q, psi)
     Q_rate = ca.SX.sym("qd", Q.numel())
 
-    z_axis = ca.DM([0.0, 0.0, 1.0])
-    points: list[Point] = []
-    origin = ca.SX.zeros(3)
+    links: list[Link] = []
     arc = 0  # span coordinate of the link's start, from the root
-    angle = theta0
-    for j, link_length in enumerate(link_lengths):
-        if j > 0:
-            angle = angle + q[j - 1]
-        along = ca.vertcat(ca.cos(angle), ca.sin(angle), 0)
-        normal = ca.vertcat(-ca.sin(angle), ca.cos(angle), 0)
-        for c in GAUSS:
-            points.append(Point(
-                origin + c * link_length * along, normal,
-                rho_s * spine * thick * link_length / 2, added_mass_coeff * kappa * rho * math.pi * spine**2 / 4 * link_length / 2,
-                spine * link_length / 2, spine * thick * link_length / 2, drag_coeff(arc + c * link_length),
-            ))
+    for link_length in link_lengths:
+        spine_points = tuple(PlatePoint(
+            c * link_length, 0, rho_s * spine * thick * link_length / 2,
+            added_mass_coeff * kappa * rho * math.pi * spine**2 / 4 * link_length / 2,
+            0.5 * rho * drag_coeff(arc + c * link_length) * spine * link_length / 2, spine * thick * link_length / 2,
+        ) for c in GAUSS)
+        flap_points: tuple[PlatePoint, ...] = ()
         if morphology == "chordwise":
-            fold = psi[j]
-            flap_normal = ca.cos(fold) * normal + ca.sin(fold) * z_axis
             # Both flaps mirror each other in z: model one with doubled mass, area and added mass;
-            # their z-forces cancel and their in-plane forces add.
-            # The chord points sit where two points reproduce the strip's added mass and its first
-            # and second moments about the hinge; they also carry the drag and structural mass.
-            for c in GAUSS:
-                hinge_point = origin + c * link_length * along
-                for s in ADDED_MASS_CHORD:
-                    offset = (spine / 2 + s * chord * ca.cos(fold)) * z_axis - s * chord * ca.sin(fold) * normal
-                    quarter = link_length * chord / 4
-                    points.append(Point(
-                        hinge_point + offset, flap_normal, 2 * rho_s * thick * quarter,
-                        2 * added_mass_coeff * kappa * rho * math.pi * chord**2 / 4 * link_length / 4,
-                        2 * quarter, 2 * thick * quarter, drag_coeff(arc + c * link_length),
-                    ))
-        origin = origin + link_length * along
+            # their z-forces cancel and their in-plane forces add. The chord points sit where two
+            # points reproduce the strip's added mass and its first and second moments about the
+            # hinge; they also carry the drag and structural mass.
+            quarter = link_length * chord / 4
+            flap_points = tuple(PlatePoint(
+                c * link_length, s * chord, 2 * rho_s * thick * quarter,
+                2 * added_mass_coeff * kappa * rho * math.pi * chord**2 / 4 * link_length / 4,
+                0.5 * rho * drag_coeff(arc + c * link_length) * 2 * quarter, 2 * thick * quarter,
+            ) for c in GAUSS for s in ADDED_MASS_CHORD)
+        links.append(Link(link_length, spine_points, flap_points, spine / 2))
         arc = arc + link_length
 
-    # Lagrange's equations over G = (Q, θ0) with θ0 prescribed: the rows of Q give Q̈, the row of
-    # θ0 gives the torque the actuator must apply.
-    y_axis = ca.DM([0.0, 1.0, 0.0])
-    coords = ca.vertcat(Q, theta0)
-    coord_rates = ca.vertcat(Q_rate, theta0_rate)
-    n_free = Q.numel()
-    gravity_force = (rho - rho_s) * grav * y_axis  # net buoyancy per unit volume
-    dynamics = [point_dynamics(pt, coords, coord_rates, n_free, theta0_accel, flow_speed, rho, gravity_force)
-                for pt in points]
-    mass_matrix = sum(d.mass_matrix for d in dynamics)
-    generalized_force = sum(d.applied - d.bias for d in dynamics)
-
     internal, elastic_energy, fold_angle = _internal_torques(morphology, joints, q, psi, Q_rate, P, width, link_lengths)
-    # Flaps first: their block of M is diagonal, so eliminating them first causes no fill-in.
-    order = list(range(n_joints, n_free)) + list(range(n_joints))
-    permuted = ldl_solve(mass_matrix[order, order], (generalized_force[:n_free] - internal)[order])
-    Q_accel = ca.vertcat(*[permuted[order.index(k)] for k in range(n_free)])
-
-    root_torque = ca.dot(mass_matrix[n_free, :n_free].T, Q_accel) - generalized_force[n_free]
-    drag_thrust = sum(d.drag[1] for d in dynamics)
-    thrust = drag_thrust - sum(d.momentum_rate(Q_accel)[1] for d in dynamics)
-    momentum_y = sum(d.momentum()[1] for d in dynamics)
-    # ∂(momentum_y)/∂U: what the body's acceleration U̇ would add to the root force, −surge_mass·U̇.
-    surge_mass = sum(pt.mass_kg + pt.added_mass_kg * pt.normal[1] ** 2 for pt in points)
-    kinetic_energy = sum(d.kinetic_energy() for d in dynamics)
+    net_buoyancy = (rho - rho_s) * grav  # per unit volume, along +y
+    solution = solve_chain(links, ChainMotion(
+        theta0, theta0_rate, theta0_accel, flow_speed, q, Q_rate[:n_joints], internal[:n_joints],
+        psi, Q_rate[n_joints:], internal[n_joints:]), net_buoyancy)
+    Q_accel = ca.vertcat(solution.joint_accels, solution.fold_accels)
     # Buoyancy energy counted from the position of least potential a point can reach (no point is
     # farther than l + w from the root), so that the energy is never negative.
-    reach = length + width
-    buoyancy_energy = sum(pt.volume_m3 * (ca.fabs(gravity_force[1]) * reach - ca.dot(gravity_force, pt.position))
-                          for pt in points)
-    tip = origin
+    buoyancy_energy = ca.fabs(net_buoyancy) * (length + width) * solution.volume_m3 - net_buoyancy * solution.volume_height_m4
+    tip_x, tip_y = solution.tip_m
 
     states = [Variable(f"joint_{k}_rad", "rad", f"relative angle of bending joint {k} (0 = root side)") for k in range(n_joints)]
     if morphology == "spanwise":
@@ -251,8 +218,9 @@ def feather_model(morphology: str = "plain", n_units: int = 10, root_support: bo
     )
     # Merge structurally equal subexpressions built separately per point: halves the generated C.
     xdot, outputs_expr = ca.vertsplit(
-        ca.cse(ca.vertcat(Q_rate, Q_accel, thrust, root_torque, tip[0], tip[1], fold_angle,
-                          kinetic_energy + elastic_energy + buoyancy_energy, drag_thrust, momentum_y, surge_mass)),
+        ca.cse(ca.vertcat(Q_rate, Q_accel, solution.thrust_N, solution.root_torque_Nm, tip_x, tip_y, fold_angle,
+                          solution.kinetic_energy_J + elastic_energy + buoyancy_energy, solution.drag_thrust_N,
+                          solution.momentum_y_Ns, solution.surge_mass_kg)),
         [0, 2 * Q.numel(), 2 * Q.numel() + 9])
     return Model(
         name=f"feather_{morphology}",

@@ -7,7 +7,9 @@ water at rest (the body speed U included). Lagrange's equations give the general
     Q_f = −d/dt(∂T_f/∂Ġ) + ∂T_f/∂G = −Σ_p m_a [v̇_n G_pᵀn + v_n G_pᵀṅ] + Σ_p m_a v_n (∂n_p/∂G)ᵀ w_p,
 
 where G_p = ∂r_p/∂G. The last sum is the Munk couple (it turns a plate moving obliquely
-broadside); without it the force would still not conserve energy. The resultant force on the
+broadside); without it the force would still not conserve energy. For a point on a plate turning
+at Ω, ṅ = Ω × n and (∂n/∂G)ᵀ w = (∂Ω/∂Ġ)ᵀ (n × w): the Munk term is the couple m_a v_n (n × w) on
+the plate, which is how `fmu_src.chain` applies it. The resultant force on the
 feather is −d/dt Σ_p m_a v_n n: the rate of change of the fluid impulse, whose mean over a
 periodic motion is exactly zero. The Morison form −m_a (n·r̈) n, written for a body that does not
 rotate, lacks both velocity-product terms and manufactures a mean thrust on a bending feather
@@ -51,81 +53,27 @@ def stroke_keulegan_carpenter(span_m: ca.SX, stroke_amplitude_rad: ca.SX, width_
     return math.pi * span_m * stroke_amplitude_rad / width_m
 
 
-@dataclass
-class Point:
-    """A quadrature point of the feather, every field a CasADi expression."""
+@dataclass(frozen=True)
+class FluidLoads:
+    """What the fluid does to one point besides the added-mass force −m_a (n·a) n, which
+    belongs to the mass matrix. Vectors are in whatever frame the arguments were given."""
 
-    position: ca.SX  # 3-vector, root frame
-    normal: ca.SX  # unit 3-vector
-    mass_kg: ca.SX
-    added_mass_kg: ca.SX
-    area_m2: ca.SX
-    volume_m3: ca.SX
-    drag_coeff: ca.SX
+    normal_speed_m_s: ca.SX  # v_n = n·w
+    impulse_rate_N: ca.SX  # m_a [(ṅ·w) n + v_n ṅ]: the rest of d/dt(m_a v_n n)
+    munk_couple_Nm: ca.SX  # m_a v_n (n × w), the couple the fluid applies (turns a plate broadside)
+    drag_N: ca.SX  # −drag_factor |v_n| v_n n
 
 
-@dataclass
-class PointDynamics:
-    """One point's share of the generalized equations over G = (Q, θ0), and what the load cell
-    needs. Accelerations are split as r̈ = J_G Ġ̇ with the root's part known: a = J_Q Q̈ + a_known."""
-
-    mass_matrix: ca.SX  # (nG, nG): m_p J_Gᵀ J_G + m_a (J_Gᵀ n)(J_Gᵀ n)ᵀ
-    bias: ca.SX  # (nG,): inertial and fluid-reactive forces not proportional to Q̈
-    applied: ca.SX  # (nG,): generalized drag and buoyancy
-    jacobian_q: ca.SX  # (3, nQ)
-    known_accel: ca.SX  # (3,)
-    velocity: ca.SX  # (3,) relative to the root frame
-    relative_velocity: ca.SX  # (3,) relative to the water (body speed included)
-    normal_rate: ca.SX  # (3,)
-    drag: ca.SX  # (3,)
-    point: Point
-
-    def momentum_rate(self, q_accel: ca.SX) -> ca.SX:
-        """d/dt of the structure's momentum plus the fluid impulse m_a v_n n carried by this point."""
-        accel = self.jacobian_q @ q_accel + self.known_accel
-        n, w = self.point.normal, self.relative_velocity
-        normal_speed_rate = ca.dot(n, accel) + ca.dot(self.normal_rate, w)
-        return self.point.mass_kg * accel + self.point.added_mass_kg * (
-            normal_speed_rate * n + ca.dot(n, w) * self.normal_rate)
-
-    def momentum(self) -> ca.SX:
-        """Structure momentum plus fluid impulse of this point (root frame velocities)."""
-        n = self.point.normal
-        return self.point.mass_kg * self.velocity + self.point.added_mass_kg * ca.dot(n, self.relative_velocity) * n
-
-    def kinetic_energy(self) -> ca.SX:
-        """Structure plus fluid kinetic energy, in the root's frame (the body speed excluded)."""
-        n = self.point.normal
-        return 0.5 * self.point.mass_kg * ca.dot(self.velocity, self.velocity) + 0.5 * self.point.added_mass_kg * ca.dot(
-            n, self.velocity) ** 2
-
-
-def point_dynamics(
-    point: Point, coords: ca.SX, coord_rates: ca.SX, n_free: int, root_accel: ca.SX, flow_speed_m_s: ca.SX,
-    water_density: ca.SX, gravity_force: ca.SX,
-) -> PointDynamics:
-    """Lagrangian contributions of `point`. `coords` is G = (Q, θ0): the first `n_free` are free,
-    the last is the prescribed root angle with acceleration `root_accel`. `gravity_force` is the
-    point's net weight-plus-buoyancy vector per unit volume."""
-    jac = ca.jacobian(point.position, coords)
-    velocity = jac @ coord_rates
-    relative = velocity + flow_speed_m_s * ca.DM([0.0, 1.0, 0.0])
-    convective = ca.jtimes(velocity, coords, coord_rates)  # J̇ Ġ
-    known_accel = jac[:, n_free] * root_accel + convective
-    n = point.normal
-    normal_rate = ca.jtimes(n, coords, coord_rates)
-    normal_speed = ca.dot(n, relative)
-    jac_n = jac.T @ n
-    m, m_a = point.mass_kg, point.added_mass_kg
-    bias = m * (jac.T @ known_accel) + m_a * (
-        (ca.dot(n, known_accel) + ca.dot(normal_rate, relative)) * jac_n
-        + normal_speed * (jac.T @ normal_rate)
-        - normal_speed * (ca.jacobian(n, coords).T @ relative)  # the Munk couple
-    )
-    drag = -0.5 * water_density * point.drag_coeff * point.area_m2 * ca.fabs(normal_speed) * normal_speed * n
-    applied = jac.T @ (drag + point.volume_m3 * gravity_force)
-    return PointDynamics(
-        mass_matrix=m * (jac.T @ jac) + m_a * (jac_n @ jac_n.T), bias=bias, applied=applied,
-        jacobian_q=jac[:, :n_free], known_accel=known_accel, velocity=velocity, relative_velocity=relative,
-        normal_rate=normal_rate, drag=drag, point=point,
+def fluid_loads(
+    added_mass_kg: ca.SX, drag_factor_kg_m: ca.SX, normal: ca.SX, normal_rate: ca.SX, relative_velocity: ca.SX
+) -> FluidLoads:
+    """Velocity-product fluid force, Munk couple and drag of a point whose normal n turns at
+    `normal_rate` (ṅ = Ω × n) and moves at w = `relative_velocity` through still water.
+    `drag_factor_kg_m` is ½ ρ C_d A."""
+    normal_speed = ca.dot(normal, relative_velocity)
+    return FluidLoads(
+        normal_speed_m_s=normal_speed,
+        impulse_rate_N=added_mass_kg * (ca.dot(normal_rate, relative_velocity) * normal + normal_speed * normal_rate),
+        munk_couple_Nm=added_mass_kg * normal_speed * ca.cross(normal, relative_velocity),
+        drag_N=-drag_factor_kg_m * ca.fabs(normal_speed) * normal_speed * normal,
     )

@@ -1,6 +1,6 @@
 """`featherstar emulate`: the bench emulator on the command line.
 
-`cosim.cli:main` calls `register(subparsers)` and dispatches `args.func(args)`; `python -m hil`
+`featherstar.app:main` calls `register(subparsers)` and dispatches `args.func(args)`; `python -m hil`
 offers the same commands without the rest of featherstar.
 """
 from __future__ import annotations
@@ -14,7 +14,7 @@ import sys
 
 from hil.emulator import IDLE_TIMEOUT_S, LOADCELL_UNIT, SERVO_UNIT, Emulator, serve
 from hil.errors import HILError
-from hil.plant import FlatPlatePlant
+from hil.plant import flat_plate_plant, fmu_plant_parameters, read_plant_parameters
 from hil.registers import available_maps, load_loadcell_map, load_servo_map
 
 _DESCRIPTION = f"""\
@@ -62,6 +62,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         "(default; the testbed scene's physics) or an analytic rigid flat plate")
     p.add_argument("--morphology", choices=("plain", "chordwise", "spanwise"), default="chordwise",
                    help="feather of the fmu plant (default: %(default)s)")
+    p.add_argument("--plant-parameters", default=None, metavar="FILE",
+                   help="JSON object of plant coefficients that differ from the defaults, e.g. "
+                        '{"feather.drag_coeff": 1.6, "feather.oscillatory_drag": 0} (fmu plant: feather.NAME, '
+                        "servo.NAME; flat plate: c_n, c_a, ...). They are hidden: not printed, not served over "
+                        "Modbus, so a client must measure them (featherstar calibrate)")
+    p.add_argument("--plant-set", action="append", default=[], metavar="NAME=VALUE",
+                   help="one plant coefficient (repeatable; wins over --plant-parameters; visible in the "
+                        "process list, unlike the file)")
     p.set_defaults(func=emulate)
 
 
@@ -82,18 +90,22 @@ def emulate(args: argparse.Namespace) -> int:
     # Maps first: a typo must not wait for the FMUs to build.
     loadcell_map, servo_map = load_loadcell_map(args.loadcell_map), load_servo_map(args.servo_map)
     logging.basicConfig(level=logging.WARNING, format="%(asctime)s %(name)s: %(message)s")
+    hidden = read_plant_parameters(args.plant_parameters, args.plant_set)
     if args.plant == "fmu":
         from hil.fmu_plant import FmuPlant  # builds FMUs: only when asked for
 
-        plant = FmuPlant(args.morphology)
+        feather, servo = fmu_plant_parameters(hidden)
+        plant = FmuPlant(args.morphology, feather_parameters=feather, servo_parameters=servo)
     else:
-        plant = FlatPlatePlant()
+        plant = flat_plate_plant(hidden)
     emulator = Emulator(loadcell_map, servo_map, plant, noise_N=args.noise_N, seed=args.seed)
 
     def ready(port: int) -> None:
         print(f"featherstar emulate: listening on modbus-tcp://{args.host}:{port} "
               f"(load cell unit {LOADCELL_UNIT}: {emulator.loadcell_map.name}, "
-              f"servo unit {SERVO_UNIT}: {emulator.servo_map.name})", flush=True)
+              f"servo unit {SERVO_UNIT}: {emulator.servo_map.name})"
+              + (f"; {len(hidden)} hidden plant coefficient(s) differ from the defaults" if hidden else ""),
+              flush=True)
 
     try:
         asyncio.run(serve(emulator, args.host, args.port, asyncio.Event(), ready,

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import abc
 import asyncio
+import json
 import logging
 import math
 import random
@@ -25,7 +26,7 @@ import tempfile
 import threading
 import time
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Mapping
 
 from hil.codec import decode_value, encode_status, encode_value
 from hil.errors import HILError
@@ -327,9 +328,17 @@ class EmulatorProcess(_Handle):
 
     _LISTENING = re.compile(r"listening on modbus-tcp://(\S+):(\d+)")
 
-    def __init__(self, args: list[str], start_timeout_s: float = 20.0) -> None:
+    def __init__(self, args: list[str], start_timeout_s: float = 20.0,
+                 plant_parameters: Mapping[str, float] | None = None) -> None:
         # stderr to a file: an unread pipe would fill and stall the child.
         self._stderr = tempfile.TemporaryFile("w+")
+        # Hidden coefficients go through a file, not the command line (which `ps` shows).
+        self._parameters_file = None
+        if plant_parameters:
+            self._parameters_file = tempfile.NamedTemporaryFile("w", suffix=".json", delete=False)
+            json.dump(dict(plant_parameters), self._parameters_file)
+            self._parameters_file.close()
+            args = [*args, "--plant-parameters", self._parameters_file.name]
         self.proc = subprocess.Popen([sys.executable, "-m", "hil", "emulate", *args],
                                      stdout=subprocess.PIPE, stderr=self._stderr, text=True)
         lines: list[str] = []
@@ -352,6 +361,8 @@ class EmulatorProcess(_Handle):
             self.proc.wait(10.0)
         self.proc.stdout.close()
         self._stderr.close()
+        if self._parameters_file is not None:
+            Path(self._parameters_file.name).unlink(missing_ok=True)
 
     def kill(self) -> None:
         """SIGKILL: the server vanishes mid-conversation, as a device losing power does."""
@@ -364,14 +375,16 @@ def spawn_emulator(host: str = "127.0.0.1", port: int = 0,
                    loadcell_map: str | Path = "loadcell-float32-abcd",
                    servo_map: str | Path = "servo-default", *, noise_N: float = 0.01,
                    seed: int | None = None, plant: str = "flat-plate",
-                   morphology: str = "chordwise", start_timeout_s: float = 20.0) -> EmulatorProcess:
+                   morphology: str = "chordwise", start_timeout_s: float = 20.0,
+                   plant_parameters: Mapping[str, float] | None = None) -> EmulatorProcess:
     """Run the emulator in a child process; returns once it listens (port 0 = any).
 
     `plant` is "flat-plate" (analytic, starts at once) or "fmu" (the servo and feather FMUs;
-    the first start compiles them, so give it a longer `start_timeout_s`)."""
+    the first start compiles them, so give it a longer `start_timeout_s`). `plant_parameters`
+    are hidden coefficients of the plant (see `featherstar emulate --plant-parameters`)."""
     args = ["--host", host, "--port", str(port), "--loadcell-map", str(loadcell_map),
             "--servo-map", str(servo_map), "--noise-N", str(noise_N), "--plant", plant,
             "--morphology", morphology]
     if seed is not None:
         args += ["--seed", str(seed)]
-    return EmulatorProcess(args, start_timeout_s)
+    return EmulatorProcess(args, start_timeout_s, plant_parameters)

@@ -6,8 +6,9 @@ each. A step that ends after the next tick was due is a deadline miss; the pacer
 with the latest tick already due (starting it late) and skips any tick wholly passed, so time
 never drifts behind the wall clock. The step length h_s handed out grows by the skipped periods.
 
-`run_paced` is the loop the master calls; the master can also drive `Pacer` and
-`hil.recorder.Recorder` itself.
+A scene with hardware blocks (`master.realtime`) is paced by the Simulator itself
+(cosim.pacing, before every macro step). `run_paced` is for driving hardware blocks directly,
+without a scene: the bench's loop-rate measurement (bench/hil_loop_rate.py) and the fault tests.
 """
 from __future__ import annotations
 

@@ -8,9 +8,13 @@ tared load-cell reading of the simulated feather).
 """
 from __future__ import annotations
 
+import json
 import math
-from dataclasses import dataclass, field
-from typing import Protocol, runtime_checkable
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Mapping, Protocol, Sequence, runtime_checkable
+
+from .errors import HILError
 
 
 @runtime_checkable
@@ -95,3 +99,60 @@ class FlatPlatePlant:
             self.accel_rad_s2 = (command - self.rate_rad_s) / self.tau_motor_s
             self.rate_rad_s += self.accel_rad_s2 * h
             self.angle_rad += self.rate_rad_s * h
+
+
+def read_plant_parameters(path: str | Path | None, items: Sequence[str] = ()) -> dict[str, float]:
+    """Plant coefficients that differ from the defaults: a JSON object file ({"feather.drag_coeff":
+    1.5, ...}) and KEY=VALUE items (which win). The emulator never serves them over Modbus: a
+    client has to measure them, which is what calibration is tested against."""
+    parameters: dict[str, float] = {}
+    if path is not None:
+        try:
+            loaded = json.loads(Path(path).read_text())
+        except (OSError, json.JSONDecodeError) as exc:
+            raise HILError(f"--plant-parameters {path}: cannot read a JSON object ({exc})") from None
+        if not isinstance(loaded, dict):
+            raise HILError(f"--plant-parameters {path}: must hold a JSON object of NAME: number")
+        parameters.update(loaded)
+    for item in items:
+        key, eq, value = item.partition("=")
+        if not eq or not key.strip():
+            raise HILError(f"--plant-set {item!r} must read NAME=VALUE")
+        parameters[key.strip()] = value.strip()
+    checked = {}
+    for key, value in parameters.items():
+        try:
+            number = float(value)
+        except (TypeError, ValueError):
+            number = math.nan
+        if not math.isfinite(number):
+            raise HILError(f"plant parameter {key} = {value!r} must be a finite number")
+        checked[key] = number
+    return checked
+
+
+def fmu_plant_parameters(parameters: Mapping[str, float]) -> tuple[dict[str, float], dict[str, float]]:
+    """(feather, servo) parameters of the FMU plant from "feather.NAME" / "servo.NAME" keys
+    (a bare NAME is the feather's); the FMU models check names and physical ranges."""
+    feather, servo = {}, {}
+    for key, value in parameters.items():
+        block, dot, name = key.partition(".")
+        if not dot:
+            feather[key] = value
+        elif block in ("feather", "servo"):
+            (feather if block == "feather" else servo)[name] = value
+        else:
+            raise HILError(f"plant parameter {key}: the fmu plant has blocks 'feather' and 'servo'")
+    return feather, servo
+
+
+def flat_plate_plant(parameters: Mapping[str, float]) -> FlatPlatePlant:
+    """A FlatPlatePlant with some of its coefficients (field names, e.g. c_n, c_a) changed."""
+    names = {f.name for f in fields(FlatPlatePlant) if f.init}
+    unknown = sorted(set(parameters) - names)
+    if unknown:
+        raise HILError(f"the flat-plate plant has no parameter(s) {', '.join(unknown)}; it has: {', '.join(sorted(names))}")
+    negative = [k for k, v in parameters.items() if v < 0]
+    if negative:
+        raise HILError(f"flat-plate plant parameter {negative[0]} = {parameters[negative[0]]} must be >= 0")
+    return FlatPlatePlant(**parameters)

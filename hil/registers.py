@@ -301,7 +301,7 @@ def parse_map(doc: dict[str, Any], name: str, source: str) -> LoadCellMap | Serv
 
 
 def _maps_dir() -> Traversable:
-    return resources.files("hil").joinpath("maps")
+    return resources.files(__package__).joinpath("maps")
 
 
 def available_maps() -> list[str]:

@@ -1,6 +1,6 @@
 """`featherstar optimize | sweep | codesign | paper`: thin wrappers over the library.
 
-`register(subparsers)` is called by the `featherstar` entry point (cosim.cli); `main()` runs the same
+`register(subparsers)` is called by the `featherstar` entry point (featherstar.app); `main()` runs the same
 commands standalone (`python -m optimizer.cli ...`). SCENE is a cosim scene name or path, or
 `synthetic:MORPHOLOGY` for the analytic stand-in (optimizer.synthetic), which needs no FMU.
 """
@@ -16,6 +16,8 @@ from typing import Sequence
 from fmu_src.errors import FeatherstarError
 
 from .bayes import DEFAULT_ITERATIONS
+from .cli_bench import add_bench_options, bench_optimize, check_bench_arguments
+from .cli_calibrate import register_calibrate
 from .codesign import MORPHOLOGY_VARIABLES, codesign
 from .errors import OptimizerError
 from .evaluation import MeasurementPlan
@@ -105,7 +107,7 @@ def _batch_workers(args: argparse.Namespace) -> int:
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    """Add the optimize, sweep, codesign and paper subcommands; each sets `func`."""
+    """Add the optimize, sweep, codesign, calibrate and paper subcommands; each sets `func`."""
     opt = subparsers.add_parser("optimize", help="Bayesian optimization of the stroke (paper Sec. II-D)")
     _common(opt, default_noise_N=DEFAULT_NOISE_SD_N)
     opt.add_argument("--objective", choices=("max", "min"), default="max", help="best (max TR) or worst (min TR)")
@@ -121,6 +123,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     opt.add_argument("--compare", type=Path, nargs="*", default=[], metavar="DIR",
                      help="other optimize output directories to draw in the same Fig. 8")
     _where(opt, batches=True)
+    add_bench_options(opt)
     opt.set_defaults(func=_optimize_command)
 
     sweep = subparsers.add_parser("sweep", help="morphology × controller grid sweep (paper Fig. 3)")
@@ -143,6 +146,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     co.add_argument("--resume", action="store_true")
     _where(co, batches=True)
     co.set_defaults(func=_codesign_command)
+
+    register_calibrate(subparsers, _override)
 
     paper = subparsers.add_parser(
         "paper", help="rerun the paper's experiments; markdown report with Figs. 3, 5-9 and a claims table",
@@ -186,6 +191,12 @@ def _optimize_command(args: argparse.Namespace) -> int:
         if not path.exists():
             raise OptimizerError(f"--compare {directory}: no summary.json there")
         compare.append(json.loads(path.read_text()))
+    check_bench_arguments(args)
+    if args.hardware:
+        if args.scene.startswith(_SYNTHETIC_PREFIX):
+            raise OptimizerError(f"--hardware: {args.scene} is an analytic stand-in; give the scene the bench runs")
+        make_objective(args.scene, overrides)   # the same refusals as a simulated study (--set master.*)
+        return bench_optimize(args, space, overrides, tuple(compare))
     objective = make_objective(args.scene, overrides)
     print(f"optimizing {args.scene} ({args.objective} TR, {args.iterations} iterations) → {args.out}/evaluations.jsonl")
     try:

@@ -19,10 +19,11 @@ _CONTROLLER_COLOURS = {"best": "tab:green", "baseline": "tab:gray", "worst": "ta
 
 
 def progress_figure(
-    evaluations: Sequence[Mapping], estimates: Sequence[Mapping | None], names: Sequence[str], path: str | Path
+    evaluations: Sequence[Mapping], estimates: Sequence[Mapping | None], names: Sequence[str], path: str | Path,
+    *, title: str | None = None,
 ) -> Path:
     """Fig. 6: observed and estimated TR per iteration, then each variable (observed points and
-    the current best-estimate point)."""
+    the current best-estimate point). `title` names the study (e.g. measured on the bench)."""
     iterations = np.arange(1, len(evaluations) + 1)
     fig, axes = plt.subplots(1 + len(names), 1, sharex=True, figsize=(6, 1.8 * (1 + len(names))))
     estimated = [math.nan if e is None else e["thrust_ratio"] for e in estimates]
@@ -35,11 +36,13 @@ def progress_figure(
         ax.plot(iterations, [math.nan if e is None else e["params"][name] for e in estimates], "-", color="tab:orange")
         ax.set_ylabel(name, fontsize=7)
     axes[-1].set_xlabel("iteration")
+    if title:
+        axes[0].set_title(title, fontsize=9)
     fig.tight_layout()
     return _save(fig, path)
 
 
-def validation_figure(rows: Sequence[Mapping], path: str | Path) -> Path:
+def validation_figure(rows: Sequence[Mapping], path: str | Path, *, title: str | None = None) -> Path:
     """Fig. 8: TR and mean thrust (mean ± sd over the validation repeats) per morphology and
     controller. Rows: morphology, controller (best/baseline/worst), thrust_ratio(_sd), mean_thrust_N(_sd)."""
     morphologies = list(dict.fromkeys(r["morphology"] for r in rows))
@@ -60,6 +63,8 @@ def validation_figure(rows: Sequence[Mapping], path: str | Path) -> Path:
     axes[0].legend(fontsize=7)
     axes[1].set_ylabel("mean thrust (mN)")
     axes[1].set_xticks(np.arange(len(morphologies)), morphologies, fontsize=8)
+    if title:
+        axes[0].set_title(title, fontsize=9)
     fig.tight_layout()
     return _save(fig, path)
 

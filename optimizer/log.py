@@ -9,7 +9,6 @@ Resuming checks that the header matches: a log is never continued with a differe
 from __future__ import annotations
 
 import json
-import math
 import os
 import signal
 import threading
@@ -17,6 +16,8 @@ import warnings
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, Iterator
+
+from cosim.jsonable import json_safe
 
 from .errors import OptimizerError
 
@@ -37,19 +38,8 @@ def _signals_deferred() -> Iterator[None]:
         signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
-def _json_safe(value: Any) -> Any:
-    """Strict JSON: non-finite floats become strings ('inf', 'nan') instead of invalid tokens."""
-    if isinstance(value, float) and not math.isfinite(value):
-        return str(value)
-    if isinstance(value, dict):
-        return {k: _json_safe(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_json_safe(v) for v in value]
-    return value
-
-
 def dumps(value: Any) -> str:
-    return json.dumps(_json_safe(value), sort_keys=True, allow_nan=False)
+    return json.dumps(json_safe(value), sort_keys=True, allow_nan=False)
 
 
 class ExperimentLog:

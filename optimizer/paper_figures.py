@@ -41,7 +41,7 @@ def _missing(ax: plt.Axes, text: str) -> None:
 def fig3_sweep(table: list[Mapping], path: Path) -> Path:
     """Per geometry, maxima over controllers of TR (Eq. 3), of mean thrust and of the caption's
     normalized thrust, vs WR and LR; the paper's chosen subset shaded, its three ratios dotted."""
-    from .paper import FAMILY_RATIOS
+    from .paper_plan import FAMILY_RATIOS
 
     metrics = [("thrust_ratio", "max TR (Eq. 3)", 1.0), ("mean_thrust_N", "max T̄ (mN)", 1e3),
                ("normalized_thrust", "max T̄ / T̄_ref", 1.0)]
@@ -74,7 +74,7 @@ def fig3_sweep(table: list[Mapping], path: Path) -> Path:
 
 def fig5_symmetric(symmetric: Mapping[str, Mapping], path: Path) -> Path:
     """Raw thrust (last two periods) with the root angle, integrated thrust, TR over the sets."""
-    from .paper import LABELS, MORPHOLOGIES, PERIOD_S
+    from .paper_plan import LABELS, MORPHOLOGIES, PERIOD_S
 
     fig = plt.figure(figsize=(9, 7.5))
     grid = fig.add_gridspec(3, 3)
@@ -127,7 +127,7 @@ def _angle_trace(stroke: Stroke, n: int = 300) -> tuple[np.ndarray, np.ndarray]:
 
 def fig7_strokes(studies: Mapping[str, Mapping], res, path: Path) -> Path:
     """Optimized strokes (commanded root angle over one period) per ratio, at each period."""
-    from .paper import fig7_cases, fig7_key
+    from .paper_plan import fig7_cases, fig7_key
 
     periods = list(res.fig7_periods_s)
     fig, axes = plt.subplots(len(periods), 2, figsize=(8, 2.4 * len(periods)), squeeze=False)
@@ -157,7 +157,7 @@ def fig7_strokes(studies: Mapping[str, Mapping], res, path: Path) -> Path:
 
 def fig8_rows(studies: Mapping[str, Mapping]) -> list[dict]:
     """Best and baseline from the max study, worst from the min study, per feather."""
-    from .paper import LABELS, MORPHOLOGIES
+    from .paper_plan import LABELS, MORPHOLOGIES
 
     rows = []
     for family in MORPHOLOGIES:
@@ -174,7 +174,7 @@ def fig8_rows(studies: Mapping[str, Mapping]) -> list[dict]:
 
 def fig9_robot(robot: Mapping[str, Mapping], path: Path) -> Path:
     """Body displacement and speed per feather and controller; mean speeds after settling."""
-    from .paper import CONTROLLERS, LABELS, MORPHOLOGIES
+    from .paper_plan import CONTROLLERS, LABELS, MORPHOLOGIES
 
     fig = plt.figure(figsize=(10, 7))
     grid = fig.add_gridspec(3, 3)

@@ -201,7 +201,7 @@ def _minutes(seconds: float) -> str:
 
 def write_markdown(path: Path, data: Mapping, table: list[dict], figures: Mapping[str, Path], res,
                    timing: Mapping) -> Path:
-    from .paper import FULL, LABELS, MORPHOLOGIES, fig7_cases, fig7_key, sweep_geometries
+    from .paper_plan import FULL, LABELS, MORPHOLOGIES, fig7_cases, fig7_key, sweep_geometries
 
     agree = sum(1 for row in table if row["agrees"])
     judged = sum(1 for row in table if row["agrees"] is not None)

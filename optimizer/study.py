@@ -26,7 +26,7 @@ from .space import LOG_HOLD_MOVE, LOG_HOLD_UP_DOWN, LOG_UP_DOWN, SearchSpace, st
 VALIDATION_REPEATS = 10
 VALIDATION_PERIODS = 5
 # Validation runs get their own noise indices: the optimum and the baseline never share noise.
-_BEST_INDEX, _BASELINE_INDEX = (0,), (1,)
+BEST_VALIDATION_INDEX, BASELINE_VALIDATION_INDEX = (0,), (1,)
 
 
 def baseline_point(space: SearchSpace, like: Mapping[str, float]) -> dict[str, float]:
@@ -49,20 +49,45 @@ def summarize(
 ) -> dict:
     """Validate the optimum and the baseline (side by side on `executor`, default this process);
     the dict written as summary.json."""
-    best = run.best
+    best_overrides, baseline_overrides = validation_overrides(space, run.best.point)
     started = time.perf_counter()
-    best_overrides = space.overrides(best.point)
-    extras = {k: v for k, v in best_overrides.items() if not k.startswith("controller.")}
-    baseline_overrides = {**stroke_overrides(symmetric_stroke(space.period_s, space.amplitude_deg)), **extras}
     executor = executor or InlineExecutor()
     run_validation = functools.partial(validate, repeats=repeats, periods=periods)
     validated, baseline = [
         future.result() for future in [
             executor.submit(run_validation, objective, overrides, space.period_s, plan, index)
-            for overrides, index in ((best_overrides, _BEST_INDEX), (baseline_overrides, _BASELINE_INDEX))
+            for overrides, index in ((best_overrides, BEST_VALIDATION_INDEX), (baseline_overrides, BASELINE_VALIDATION_INDEX))
         ]
     ]
-    validation_s = time.perf_counter() - started
+    return study_summary(space, run, validated.as_dict(), baseline.as_dict(), maximize=maximize, plan=plan,
+                         repeats=repeats, periods=periods, validation_s=time.perf_counter() - started,
+                         validation_simulation_s=validated.sim_wall_s + baseline.sim_wall_s)
+
+
+def validation_overrides(space: SearchSpace, best_point: Mapping[str, float]) -> tuple[dict, dict]:
+    """Scene overrides of the optimum and of the symmetric baseline (with the optimum's extra,
+    non-stroke variables)."""
+    best_overrides = space.overrides(best_point)
+    extras = {k: v for k, v in best_overrides.items() if not k.startswith("controller.")}
+    return best_overrides, {**stroke_overrides(symmetric_stroke(space.period_s, space.amplitude_deg)), **extras}
+
+
+def study_summary(
+    space: SearchSpace,
+    run: OptimizationRun,
+    validated: Mapping,
+    baseline: Mapping,
+    *,
+    maximize: bool,
+    plan: MeasurementPlan,
+    repeats: int,
+    periods: int,
+    validation_s: float,
+    validation_simulation_s: float,
+) -> dict:
+    """The summary.json dict from a finished run and the two validations (`Validation.as_dict()`)."""
+    best = run.best
+    best_overrides, baseline_overrides = validation_overrides(space, best.point)
     return {
         "objective": "max" if maximize else "min",
         "iterations": len(run.evaluations),
@@ -71,25 +96,39 @@ def summarize(
         "estimated_thrust_ratio": best.value,
         "estimated_thrust_ratio_sd": best.sd,
         "estimated_noise_sd": run.optimizer.noise_sd(),
-        "thrust_ratio": validated.thrust_ratio,
-        "thrust_ratio_sd": validated.thrust_ratio_sd,
-        "mean_thrust_N": validated.mean_thrust_N,
-        "mean_thrust_sd_N": validated.mean_thrust_sd_N,
+        "thrust_ratio": validated["thrust_ratio"],
+        "thrust_ratio_sd": validated["thrust_ratio_sd"],
+        "mean_thrust_N": validated["mean_thrust_N"],
+        "mean_thrust_sd_N": validated["mean_thrust_sd_N"],
         "baseline_overrides": baseline_overrides,
-        "baseline_thrust_ratio": baseline.thrust_ratio,
-        "baseline_thrust_ratio_sd": baseline.thrust_ratio_sd,
-        "baseline_mean_thrust_N": baseline.mean_thrust_N,
-        "baseline_mean_thrust_sd_N": baseline.mean_thrust_sd_N,
+        "baseline_thrust_ratio": baseline["thrust_ratio"],
+        "baseline_thrust_ratio_sd": baseline["thrust_ratio_sd"],
+        "baseline_mean_thrust_N": baseline["mean_thrust_N"],
+        "baseline_mean_thrust_sd_N": baseline["mean_thrust_sd_N"],
         "baseline_servo_violations": space.violations(baseline_point(space, best.point)),
-        "validation": {"repeats": repeats, "periods": periods, "best": validated.as_dict(), "baseline": baseline.as_dict()},
+        "validation": {"repeats": repeats, "periods": periods, "best": dict(validated), "baseline": dict(baseline)},
         "measurement": plan.describe(),
         "space": space.describe(),
         "timing_s": {
             **run.timing_s,
             "validation_s": validation_s,
-            "validation_simulation_s": validated.sim_wall_s + baseline.sim_wall_s,
+            "validation_simulation_s": validation_simulation_s,
         },
     }
+
+
+def write_study_outputs(
+    out_dir: Path, run: OptimizationRun, summary: dict, *, label: str, compare: tuple[Mapping, ...] = (),
+    measured: bool = False,
+) -> None:
+    """Fig. 6, Fig. 8 and summary.json; `measured` marks a bench study in the figures' titles."""
+    source = "measured on the bench" if measured else "simulated"
+    progress_figure(run.evaluations, run.estimates, run.optimizer.space.names, out_dir / "fig6_progress.png",
+                    title=f"Fig. 6: optimizer progress, {label} ({source})")
+    rows = [row for other in compare for row in validation_rows(other, other.get("label", "?"))]
+    validation_figure(rows + validation_rows(summary, label), out_dir / "fig8_validation.png",
+                      title=f"Fig. 8: validation, {source}")
+    (out_dir / "summary.json").write_text(json.dumps(json.loads(dumps(summary)), indent=2) + "\n")
 
 
 def validation_rows(summary: Mapping, morphology: str) -> list[dict]:
@@ -138,9 +177,7 @@ def run_study(
     summary = summarize(objective, space, run, maximize=maximize, plan=plan, executor=executor)
     summary["label"] = label
     summary["context"] = dict(context or {})
-    progress_figure(run.evaluations, run.estimates, space.names, out_dir / "fig6_progress.png")
-    rows = [row for other in compare for row in validation_rows(other, other.get("label", "?"))]
-    validation_figure(rows + validation_rows(summary, label), out_dir / "fig8_validation.png")
+    summary["measured"] = False
     summary["timing_s"]["total_s"] = time.perf_counter() - started
-    (out_dir / "summary.json").write_text(json.dumps(json.loads(dumps(summary)), indent=2) + "\n")
+    write_study_outputs(out_dir, run, summary, label=label, compare=compare)
     return summary

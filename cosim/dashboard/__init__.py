@@ -1,8 +1,8 @@
 """`featherstar bench [--quick] [--out DIR]`: every benchmark in bench/, one JSON, one report.
 
 The benchmarks are scripts in a repository checkout's `bench/` folder (they are not installed with
-the package): `find_bench_dir` looks for it from the current directory upwards and says so when
-there is none. Each script runs as its own process (`--quick` passed through, `--out` where the
+the package): `find_bench_dir` looks for it from the current directory upwards. Outside a
+checkout (an installed package) only the dashboard's own measurements run, into ./bench-results. Each script runs as its own process (`--quick` passed through, `--out` where the
 script takes it; scripts that always write to bench/results have their new files copied), two at
 a time on a 2-core machine, except the timing-sensitive HIL loop-rate bench, which runs alone.
 Their JSON is collected as is. What they do not measure, the dashboard measures itself, in one

@@ -13,7 +13,7 @@ from typing import Any, Callable, Sequence
 from fmu_src.errors import FeatherstarError
 
 from .report import load_json, derive, plot_all, write_markdown
-from .runner import find_bench_dir, make_tasks, run_tasks
+from .runner import BenchError, find_bench_dir, make_tasks, run_tasks
 from .timing import measure
 
 
@@ -22,14 +22,22 @@ def run_dashboard(quick: bool = False, out: Path | None = None, *, jobs: int = 2
                   measure: bool = True) -> dict[str, Any]:
     """Run every benchmark and write dashboard.json and dashboard.md; returns the report.
     measure=False skips the dashboard's own measurements (tests of the plumbing)."""
-    bench = find_bench_dir(start)
-    root = bench.parent
-    out = Path(out) if out is not None else bench / "results"
-    out = out if out.is_absolute() else Path.cwd() / out
-    out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     log = log or (lambda msg: print(f"{time.perf_counter() - t0:6.0f}s {msg}", flush=True))
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(root), os.environ.get("PYTHONPATH")])))
+    env = dict(os.environ)
+    try:
+        bench: Path | None = find_bench_dir(start)
+    except BenchError as exc:   # an installed package: the dashboard's own measurements still run
+        bench = None
+        log(f"{exc}; running the dashboard's own measurements only")
+    if bench is not None:
+        root = bench.parent
+        env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(root), os.environ.get("PYTHONPATH")]))
+    else:
+        root = Path.cwd()
+    out = Path(out) if out is not None else (bench / "results" if bench is not None else Path("bench-results"))
+    out = out if out.is_absolute() else Path.cwd() / out
+    out.mkdir(parents=True, exist_ok=True)
     env.setdefault("MPLBACKEND", "Agg")
     tasks = make_tasks(bench, out, quick, measure)
     started = time.strftime("%Y-%m-%d %H:%M:%S")
@@ -48,11 +56,12 @@ def run_dashboard(quick: bool = False, out: Path | None = None, *, jobs: int = 2
                 loaded = load_json(out, name)
                 if loaded is not None:
                     data[Path(name).stem] = loaded
-    if quick and "optimizer_timing" not in data:  # the last real optimizer measurement, labelled as such
+    if quick and bench is not None and "optimizer_timing" not in data:  # the last real optimizer measurement, labelled as such
         last = load_json(bench / "results", "optimizer_timing.json")
         if last is not None:
             data["optimizer_timing"] = last
-    report = {"quick": quick, "started": started, "machine": machine, "bench_dir": str(bench), "benches": benches,
+    report = {"quick": quick, "started": started, "machine": machine,
+              "bench_dir": str(bench) if bench is not None else None, "benches": benches,
               "total_s": time.perf_counter() - t0}
     report["summary"] = derive(data, quick)
     data["summary"] = report["summary"]
@@ -75,7 +84,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quick", action="store_true", help="reduced benchmarks (under 5 minutes on 2 cores)")
-    parser.add_argument("--out", type=Path, default=None, help="output folder (default: bench/results)")
+    parser.add_argument("--out", type=Path, default=None, help="output folder (default: bench/results in a checkout, ./bench-results elsewhere)")
     parser.add_argument("--jobs", type=int, default=2, help="benchmarks run at once (default 2; HIL always alone)")
     parser.add_argument("--timeout", type=float, default=None, help="stop a benchmark after this many seconds")
 
@@ -85,8 +94,9 @@ def register(subparsers: Any) -> None:
     parser = subparsers.add_parser(
         "bench", help="run every benchmark in bench/ and write one JSON and a markdown report",
         description="Run every benchmark script of the repository checkout's bench/ folder (found from the "
-                    "current directory), collect their JSON, add the dashboard's own side-by-side measurements "
-                    "and write dashboard.json and dashboard.md with plots.")
+                    "current directory; outside a checkout only the dashboard's own measurements run), collect "
+                    "their JSON, add the dashboard's own side-by-side measurements and write dashboard.json and "
+                    "dashboard.md with plots.")
     add_arguments(parser)
     parser.set_defaults(func=_cmd_bench)
 

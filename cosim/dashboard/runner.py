@@ -75,10 +75,11 @@ def _takes_out(script: Path) -> bool:
     return '"--out"' in script.read_text(errors="replace")
 
 
-def make_tasks(bench: Path, out: Path, quick: bool, measure: bool = True) -> list[Task]:
+def make_tasks(bench: Path | None, out: Path, quick: bool, measure: bool = True) -> list[Task]:
+    """The checkout's bench scripts (none without a checkout) and the dashboard's own measurements."""
     tasks = []
     logs = out / "logs"
-    for script in bench_scripts(bench):
+    for script in bench_scripts(bench) if bench is not None else []:
         plan = PLANS.get(script.name, Plan())
         args = list(plan.quick_args if quick else plan.full_args)
         writes_to = None
@@ -89,7 +90,7 @@ def make_tasks(bench: Path, out: Path, quick: bool, measure: bool = True) -> lis
         tasks.append(Task(script.stem, [sys.executable, str(script), *args], logs / f"{script.stem}.log",
                           plan.alone, plan.expected_s, writes_to))
     if measure:
-        argv = [sys.executable, "-m", "cosim.dashboard", "--measure", str(out)] + (["--quick"] if quick else [])
+        argv = [sys.executable, "-m", __package__, "--measure", str(out)] + (["--quick"] if quick else [])
         tasks.append(Task("dashboard_measurements", argv, logs / "dashboard_measurements.log",
                           expected_s=MEASURE_EXPECTED_S))
     return tasks

@@ -203,6 +203,7 @@ FMI3_Export fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentComm
                                   fmi3Boolean* earlyReturn, fmi3Float64* lastSuccessfulTime) {
   fs_instance* s = fs_check(instance, "fmi3DoStep", FS_STEP, FS_CO_SIMULATION);
   const char* cause;
+  char why[256];
   (void)noSetFMUStatePriorToCurrentPoint;
   if (!s) return fmi3Error;
   if (eventHandlingNeeded) *eventHandlingNeeded = fmi3False;
@@ -224,6 +225,7 @@ FMI3_Export fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentComm
   }
   s->dyn.time = currentCommunicationPoint;
   cause = integrate(s, currentCommunicationPoint + communicationStepSize);
+  if (!cause) cause = fs_outputs_problem(s, why, sizeof why);
   if (lastSuccessfulTime) *lastSuccessfulTime = s->dyn.time;
   if (cause) {
     s->dyn.mode = FS_FAILED;

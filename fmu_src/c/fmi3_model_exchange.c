@@ -3,7 +3,8 @@
  * CasADi's versions write nContinuousStates values without checking the count, return
  * fmi3Fatal from fmi3GetEventIndicators when the model has no event indicators (fmpy's solvers
  * call it unconditionally) and leave fmi3CompletedIntegratorStep's outputs unwritten. These
- * wrappers check mode, sizes and pointers and fill those gaps before delegating.
+ * wrappers check mode, sizes and pointers and fill those gaps before delegating. Non-finite
+ * states are refused (fmi3Error); non-finite derivatives are never returned with fmi3OK.
  */
 #include <math.h>
 
@@ -66,8 +67,15 @@ FMI3_Export fmi3Status fmi3SetContinuousStates(fmi3Instance instance, const fmi3
                                                size_t nContinuousStates) {
   const char* fn = "fmi3SetContinuousStates";
   fs_instance* s = fs_check(instance, fn, FS_CONTINUOUS_TIME, FS_MODEL_EXCHANGE);
+  long bad;
   if (!s || !check_states_array(s, fn, continuousStates, nContinuousStates, s->model->n_x))
     return fmi3Error;
+  bad = fs_first_non_finite(continuousStates, nContinuousStates);
+  if (bad >= 0) {
+    fs_error(s, "%s: state '%s' = %g refused: not finite", fn, s->model->var_name[s->model->x_vr[bad]],
+             continuousStates[bad]);
+    return fmi3Error;
+  }
   return casadi_fmi3SetContinuousStates(s->memory, continuousStates, nContinuousStates);
 }
 
@@ -87,10 +95,19 @@ FMI3_Export fmi3Status fmi3GetContinuousStateDerivatives(fmi3Instance instance, 
   fs_instance* s = fs_check(instance, fn, ME_EVAL_MODES, FS_MODEL_EXCHANGE);
   if (!s || !check_states_array(s, fn, derivatives, nContinuousStates, s->model->n_x))
     return fmi3Error;
-  if (casadi_fmi3GetContinuousStateDerivatives(s->memory, derivatives, nContinuousStates) == fmi3OK)
-    return fmi3OK;
-  fs_error(s, "%s: model evaluation failed at t=%g", fn, s->dyn.time);
-  return fmi3Error;
+  long bad;
+  if (casadi_fmi3GetContinuousStateDerivatives(s->memory, derivatives, nContinuousStates) != fmi3OK) {
+    fs_error(s, "%s: model evaluation failed at t=%g", fn, s->dyn.time);
+    return fmi3Error;
+  }
+  /* Discard, as FMI 3.0 asks of a model outside its domain: the integrator may retry shorter. */
+  bad = fs_first_non_finite(derivatives, nContinuousStates);
+  if (bad >= 0) {
+    fs_discard(s, "%s: der(%s) is not finite (%g) at t=%.10g", fn,
+               s->model->var_name[s->model->x_vr[bad]], derivatives[bad], s->dyn.time);
+    return fmi3Discard;
+  }
+  return fmi3OK;
 }
 
 FMI3_Export fmi3Status fmi3GetNominalsOfContinuousStates(fmi3Instance instance, fmi3Float64 nominals[],

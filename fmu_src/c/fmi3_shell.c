@@ -5,8 +5,9 @@
  * Importers do all of these (fmpy records every declared variable, `time` included), so every
  * entry point here first checks the instance, its mode and its arguments, logs what was wrong
  * through logMessage and returns fmi3Error; only then does it delegate to casadi_fmi3....
- * The mode checks follow the FMI 3.0 state machine; Co-Simulation (fmi3_cosim.c) and the FMU
- * state snapshots are the shell's own, since CasADi only provides Model Exchange.
+ * The mode checks follow the FMI 3.0 state machine. This file holds the life cycle; getting and
+ * setting values is in fmi3_variables.c; Co-Simulation (fmi3_cosim.c) and the FMU state
+ * snapshots (fmi3_state.c) are the shell's own, since CasADi only provides Model Exchange.
  */
 #include <math.h>
 #include <stdarg.h>
@@ -16,19 +17,6 @@
 
 #include "fmi3Functions.h"
 #include "fmi3_shell.h"
-
-#define GET_MODES (FS_INITIALIZATION | FS_EVENT | FS_CONTINUOUS_TIME | FS_STEP | FS_TERMINATED | FS_FAILED)
-#define SET_MODES (FS_INSTANTIATED | FS_INITIALIZATION | FS_EVENT | FS_CONTINUOUS_TIME | FS_STEP)
-#define DERIVATIVE_MODES (FS_INITIALIZATION | FS_EVENT | FS_CONTINUOUS_TIME | FS_STEP | FS_TERMINATED)
-
-/* Modes in which fmi3SetFloat64 may change each kind of variable (FMI 3.0, section 3.2). */
-static const unsigned settable_in[] = {
-    [FS_VR_UNKNOWN] = 0,
-    [FS_VR_STATE] = FS_INSTANTIATED | FS_INITIALIZATION,
-    [FS_VR_INPUT] = SET_MODES,
-    [FS_VR_PARAMETER] = FS_INSTANTIATED | FS_INITIALIZATION | FS_EVENT | FS_STEP,
-    [FS_VR_CALCULATED] = 0,
-};
 
 const char* fs_mode_name(fs_mode mode) {
   switch (mode) {
@@ -43,15 +31,26 @@ const char* fs_mode_name(fs_mode mode) {
   return "unknown";
 }
 
-void fs_error(const fs_instance* s, const char* fmt, ...) {
+static void log_status(const fs_instance* s, fmi3Status status, const char* fmt, va_list args) {
   char message[512];
-  va_list args;
   /* Errors are reported whatever the logging setting: an importer still needs the cause. */
   if (!s->log) return;
-  va_start(args, fmt);
   vsnprintf(message, sizeof message, fmt, args);
+  s->log(s->environment, status, status == fmi3Discard ? "logStatusDiscard" : "logStatusError", message);
+}
+
+void fs_error(const fs_instance* s, const char* fmt, ...) {
+  va_list args;
+  va_start(args, fmt);
+  log_status(s, fmi3Error, fmt, args);
   va_end(args);
-  s->log(s->environment, fmi3Error, "logStatusError", message);
+}
+
+void fs_discard(const fs_instance* s, const char* fmt, ...) {
+  va_list args;
+  va_start(args, fmt);
+  log_status(s, fmi3Discard, fmt, args);
+  va_end(args);
 }
 
 fs_instance* fs_check(fmi3Instance instance, const char* function, unsigned modes, unsigned kinds) {
@@ -70,6 +69,31 @@ fs_instance* fs_check(fmi3Instance instance, const char* function, unsigned mode
 }
 
 size_t fs_work_size(size_t n_x) { return 10 * n_x; }
+
+long fs_first_non_finite(const double* values, size_t n) {
+  size_t i;
+  for (i = 0; i < n; ++i)
+    if (!isfinite(values[i])) return (long)i;
+  return -1;
+}
+
+/* Why the outputs at the current point cannot be passed on, or NULL: a step that ends with a
+ * NaN output is a failed step, not an OK one the importer would only notice later. Evaluating
+ * here costs nothing extra: the importer's next fmi3GetFloat64 reuses the result. */
+const char* fs_outputs_problem(fs_instance* s, char* why, size_t size) {
+  const fs_model* m = s->model;
+  const double* v;
+  size_t i;
+  if (m->evaluate(s->memory)) return "model evaluation failed";
+  v = m->values(s->memory);
+  for (i = 0; i < m->n_y; ++i) {
+    if (!isfinite(v[m->y_vr[i]])) {
+      snprintf(why, size, "output '%s' is not finite (%g)", m->var_name[m->y_vr[i]], v[m->y_vr[i]]);
+      return why;
+    }
+  }
+  return NULL;
+}
 
 static void reset_dynamic(fs_instance* s) {
   s->dyn.mode = FS_INSTANTIATED;
@@ -195,7 +219,17 @@ FMI3_Export fmi3Status fmi3EnterInitializationMode(fmi3Instance instance,
 
 FMI3_Export fmi3Status fmi3ExitInitializationMode(fmi3Instance instance) {
   fs_instance* s = fs_check(instance, "fmi3ExitInitializationMode", FS_INITIALIZATION, FS_ANY_KIND);
+  char why[256];
+  const char* problem;
   if (!s) return fmi3Error;
+  /* Each parameter is checked against its own range when set; a combination the model cannot
+   * work with (a four-bar that does not close) shows here, before the first step. */
+  problem = fs_outputs_problem(s, why, sizeof why);
+  if (problem) {
+    fs_error(s, "fmi3ExitInitializationMode: %s at t=%g with the values set (parameters outside "
+             "the range they are valid in together?)", problem, s->dyn.time);
+    return fmi3Error;
+  }
   if (casadi_fmi3ExitInitializationMode(s->memory) != fmi3OK) return fmi3Error;
   s->dyn.mode = (s->kind == FS_CO_SIMULATION && !s->event_mode_used) ? FS_STEP : FS_EVENT;
   return fmi3OK;
@@ -229,141 +263,6 @@ FMI3_Export fmi3Status fmi3Reset(fmi3Instance instance) {
   if (casadi_fmi3Reset(s->memory) != fmi3OK) return fmi3Error;
   reset_dynamic(s);
   return fmi3OK;
-}
-
-/* Number of values the references address, or (size_t)-1 after logging the first bad one. */
-static size_t count_values(const fs_instance* s, const char* function,
-                           const fmi3ValueReference vr[], size_t n_vr, int allow_time) {
-  size_t i, n = 0;
-  for (i = 0; i < n_vr; ++i) {
-    if (vr[i] == FS_TIME_VR && allow_time) {
-      n += 1;
-    } else if (vr[i] < s->model->n_var && s->vr_kind[vr[i]] != FS_VR_UNKNOWN) {
-      n += s->model->var_offset[vr[i] + 1] - s->model->var_offset[vr[i]];
-    } else {
-      fs_error(s, "%s: unknown value reference %u", function, (unsigned)vr[i]);
-      return (size_t)-1;
-    }
-  }
-  return n;
-}
-
-static int check_array_args(const fs_instance* s, const char* function, const void* vr,
-                            size_t n_vr, const void* values, size_t n_values, size_t expected) {
-  if (n_vr && (!vr || !values)) {
-    fs_error(s, "%s: NULL array", function);
-    return 0;
-  }
-  if (expected == (size_t)-1) return 0;
-  if (expected != n_values) {
-    fs_error(s, "%s: nValues = %zu but the value references address %zu values",
-             function, n_values, expected);
-    return 0;
-  }
-  return 1;
-}
-
-FMI3_Export fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
-                                      size_t nValueReferences, fmi3Float64 values[], size_t nValues) {
-  fs_instance* s = fs_check(instance, "fmi3GetFloat64", GET_MODES, FS_ANY_KIND);
-  size_t i, k, n;
-  int has_time = 0;
-  if (!s) return fmi3Error;
-  if (nValueReferences && !valueReferences) {
-    fs_error(s, "fmi3GetFloat64: NULL array");
-    return fmi3Error;
-  }
-  n = count_values(s, "fmi3GetFloat64", valueReferences, nValueReferences, 1);
-  if (!check_array_args(s, "fmi3GetFloat64", valueReferences, nValueReferences, values, nValues, n))
-    return fmi3Error;
-  for (i = 0; i < nValueReferences; ++i) has_time |= valueReferences[i] == FS_TIME_VR;
-  if (!has_time) {
-    if (casadi_fmi3GetFloat64(s->memory, valueReferences, nValueReferences, values, nValues) == fmi3OK)
-      return fmi3OK;
-    fs_error(s, "fmi3GetFloat64: model evaluation failed at t=%g", s->dyn.time);
-    return fmi3Error;
-  }
-  /* `time` lives in the shell, so a mixed request is answered one reference at a time. */
-  for (i = 0, k = 0; i < nValueReferences; ++i) {
-    if (valueReferences[i] == FS_TIME_VR) {
-      values[k++] = s->dyn.time;
-      continue;
-    }
-    n = s->model->var_offset[valueReferences[i] + 1] - s->model->var_offset[valueReferences[i]];
-    if (fmi3GetFloat64(s, &valueReferences[i], 1, &values[k], n) != fmi3OK) return fmi3Error;
-    k += n;
-  }
-  return fmi3OK;
-}
-
-FMI3_Export fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
-                                      size_t nValueReferences, const fmi3Float64 values[], size_t nValues) {
-  fs_instance* s = fs_check(instance, "fmi3SetFloat64", SET_MODES, FS_ANY_KIND);
-  size_t i, n;
-  if (!s) return fmi3Error;
-  if (nValueReferences && !valueReferences) {
-    fs_error(s, "fmi3SetFloat64: NULL array");
-    return fmi3Error;
-  }
-  n = count_values(s, "fmi3SetFloat64", valueReferences, nValueReferences, 0);
-  if (!check_array_args(s, "fmi3SetFloat64", valueReferences, nValueReferences, values, nValues, n))
-    return fmi3Error;
-  for (i = 0; i < nValueReferences; ++i) {
-    fs_vr_kind kind = (fs_vr_kind)s->vr_kind[valueReferences[i]];
-    if (!(settable_in[kind] & s->dyn.mode)) {
-      fs_error(s, "fmi3SetFloat64: value reference %u cannot be set in state %s%s",
-               (unsigned)valueReferences[i], fs_mode_name(s->dyn.mode),
-               kind == FS_VR_CALCULATED ? " (it is calculated)" : "");
-      return fmi3Error;
-    }
-  }
-  s->dyn.fsal_valid = 0;
-  return casadi_fmi3SetFloat64(s->memory, valueReferences, nValueReferences, values, nValues);
-}
-
-static int check_derivative_args(const fs_instance* s, const char* function,
-                                 const fmi3ValueReference unknowns[], size_t n_unknowns,
-                                 const fmi3ValueReference knowns[], size_t n_knowns,
-                                 const void* seed, size_t n_seed, const void* sensitivity,
-                                 size_t n_sensitivity, int adjoint) {
-  size_t n_out, n_in;
-  if ((n_unknowns && !unknowns) || (n_knowns && !knowns)) {
-    fs_error(s, "%s: NULL array", function);
-    return 0;
-  }
-  n_out = count_values(s, function, unknowns, n_unknowns, 0);
-  n_in = count_values(s, function, knowns, n_knowns, 0);
-  if (n_out == (size_t)-1 || n_in == (size_t)-1) return 0;
-  /* Forward mode seeds the knowns; adjoint mode seeds the unknowns. */
-  return check_array_args(s, function, knowns, n_knowns, seed, n_seed, adjoint ? n_out : n_in) &&
-         check_array_args(s, function, unknowns, n_unknowns, sensitivity, n_sensitivity,
-                          adjoint ? n_in : n_out);
-}
-
-FMI3_Export fmi3Status fmi3GetDirectionalDerivative(
-    fmi3Instance instance, const fmi3ValueReference unknowns[], size_t nUnknowns,
-    const fmi3ValueReference knowns[], size_t nKnowns, const fmi3Float64 seed[], size_t nSeed,
-    fmi3Float64 sensitivity[], size_t nSensitivity) {
-  const char* fn = "fmi3GetDirectionalDerivative";
-  fs_instance* s = fs_check(instance, fn, DERIVATIVE_MODES, FS_ANY_KIND);
-  if (!s || !check_derivative_args(s, fn, unknowns, nUnknowns, knowns, nKnowns, seed, nSeed,
-                                   sensitivity, nSensitivity, 0))
-    return fmi3Error;
-  return casadi_fmi3GetDirectionalDerivative(s->memory, unknowns, nUnknowns, knowns, nKnowns,
-                                             seed, nSeed, sensitivity, nSensitivity);
-}
-
-FMI3_Export fmi3Status fmi3GetAdjointDerivative(
-    fmi3Instance instance, const fmi3ValueReference unknowns[], size_t nUnknowns,
-    const fmi3ValueReference knowns[], size_t nKnowns, const fmi3Float64 seed[], size_t nSeed,
-    fmi3Float64 sensitivity[], size_t nSensitivity) {
-  const char* fn = "fmi3GetAdjointDerivative";
-  fs_instance* s = fs_check(instance, fn, DERIVATIVE_MODES, FS_ANY_KIND);
-  if (!s || !check_derivative_args(s, fn, unknowns, nUnknowns, knowns, nKnowns, seed, nSeed,
-                                   sensitivity, nSensitivity, 1))
-    return fmi3Error;
-  return casadi_fmi3GetAdjointDerivative(s->memory, unknowns, nUnknowns, knowns, nKnowns, seed,
-                                         nSeed, sensitivity, nSensitivity);
 }
 
 FMI3_Export fmi3Status fmi3UpdateDiscreteStates(

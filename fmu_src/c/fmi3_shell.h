@@ -12,6 +12,16 @@
 #include <stddef.h>
 #include "fmi3FunctionTypes.h"
 
+/* The valid values of one parameter (fmu_src.model.Parameter): [min, max], the lower bound
+ * strict when exclusive_min; when n_choices > 0 only the listed values are valid. */
+typedef struct {
+  double min, max;
+  int exclusive_min;
+  size_t n_choices;
+  const double* choices;
+  const char* unit;
+} fs_limit;
+
 typedef struct {
   const char* instantiation_token; /* as in modelDescription.xml */
   size_t memory_size; /* sizeof(casadi_fmi_memory): what an FMU state snapshot copies */
@@ -21,11 +31,19 @@ typedef struct {
   const fmi3ValueReference* x_vr;
   const fmi3ValueReference* u_vr;
   const fmi3ValueReference* p_vr;
+  size_t n_y;
+  const fmi3ValueReference* y_vr; /* the outputs */
+  const fs_limit* limit;          /* n_var entries, by value reference; set for parameters */
+  const char* const* var_name;    /* n_var entries, by value reference (for log messages) */
   /* xdot = f(t, x, u, p) with u, p as currently set; nonzero when the generated code fails */
   int (*rhs)(void* memory, double t, const double* x, double* xdot);
   void (*get_states)(const void* memory, double* x);
   /* writes t and (if x is not NULL) the states; outputs are re-evaluated on the next get */
   void (*set_states)(void* memory, double t, const double* x);
+  /* the current value of every variable, by value reference, without evaluating the model */
+  const double* (*values)(const void* memory);
+  /* evaluates outputs and derivatives at the current t, x, u, p; nonzero when the code fails */
+  int (*evaluate)(void* memory);
 } fs_model;
 
 const fs_model* fs_model_info(void);
@@ -79,9 +97,21 @@ typedef struct {
 size_t fs_work_size(size_t n_x);
 /* Logs an fmi3Error message through the importer's logMessage callback, if any. */
 void fs_error(const fs_instance* s, const char* fmt, ...) __attribute__((format(printf, 2, 3)));
+/* Logs an fmi3Discard message: a result was not finite, the importer may retry (shorter step). */
+void fs_discard(const fs_instance* s, const char* fmt, ...) __attribute__((format(printf, 2, 3)));
 /* The instance if it exists, is of an allowed kind and in an allowed mode; else logs and NULL. */
 fs_instance* fs_check(fmi3Instance instance, const char* function, unsigned modes, unsigned kinds);
 const char* fs_mode_name(fs_mode mode);
+/* Evaluates the model at the current point; why an output is not finite there, or NULL. */
+const char* fs_outputs_problem(fs_instance* s, char* why, size_t size);
+/* Number of values the references address, or (size_t)-1 after logging the first bad one. */
+size_t fs_count_values(const fs_instance* s, const char* function, const fmi3ValueReference vr[],
+                       size_t n_vr, int allow_time);
+/* Whether an array argument holds `expected` values; logs why not. */
+int fs_check_array_args(const fs_instance* s, const char* function, const void* vr, size_t n_vr,
+                        const void* values, size_t n_values, size_t expected);
+/* Index of the first non-finite value, or -1 when all n are finite. */
+long fs_first_non_finite(const double* values, size_t n);
 
 /* CasADi's entry points, renamed by FMI3_FUNCTION_PREFIX=casadi_ in the wrap source. */
 fmi3InstantiateModelExchangeTYPE casadi_fmi3InstantiateModelExchange;

@@ -37,3 +37,17 @@ def make_scene(base: dict[str, Any], **changes: Any):
 @pytest.fixture
 def oscillator():
     return make_scene(OSCILLATOR)
+
+
+@pytest.fixture(scope="session")
+def c_fmu(tmp_path_factory):
+    """build("types", 3) -> path of a hand-written test FMU (tests/cosim/c_fmus.py), compiled once
+    per session."""
+    import shutil
+
+    if shutil.which("gcc") is None:
+        pytest.skip("gcc is needed to build the hand-written test FMUs")
+    from c_fmus import build
+
+    folder = tmp_path_factory.mktemp("c_fmus")
+    return lambda name, version: build(name, version, folder)

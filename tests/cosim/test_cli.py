@@ -4,7 +4,7 @@ from __future__ import annotations
 import csv
 import json
 
-from cosim.cli import main
+from featherstar.app import main
 
 
 def test_scenes_lists_shipped_scenes(capsys):

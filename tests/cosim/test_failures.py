@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from conftest import OSCILLATOR, make_scene
-from cosim.cli import main
+from featherstar.app import main
 from cosim.errors import StepError
 from cosim.run import run_scene
 

@@ -8,6 +8,7 @@ import pytest
 
 from cosim import graph
 from cosim.errors import SceneError, StepError
+from cosim.block import Passivity, Port, passivity_by_convention
 from cosim.guards import PassiveEnergyGuard, feedback_loops, passive_energy_guards, step_problems
 from cosim.scene import load_scene
 
@@ -97,18 +98,38 @@ def _drive(guard: PassiveEnergyGuard, unit: _Unit, t_end: float, extra=lambda t:
         guard(t)
 
 
+def _passivity(unit: _Unit):
+    return passivity_by_convention({n: Port(n, "") for n in unit.input_names},
+                                   {n: Port(n, "") for n in unit.output_names})
+
+
+def _guards(unit: _Unit, factor: float = 2.0):
+    return passive_energy_guards({"plate": unit}, {"plate": _passivity(unit)}, factor=factor, judge_from_s=0.5)
+
+
+def test_the_port_convention_declares_the_power_ports():
+    assert _passivity(_Unit()) == Passivity("mechanical_energy_J", (("root_torque_Nm", "root_rate_rad_s"),))
+    assert passivity_by_convention({"u": Port("u", "")}, {"mechanical_energy_J": Port("e", "J")}) is None
+
+
+def test_the_shipped_feather_declares_itself_passive_and_the_servo_does_not():
+    blocks = graph.plan(load_scene("testbed")).blocks
+    assert blocks["feather"].passivity is not None and blocks["servo"].passivity is None
+
+
 def test_energy_guard_finds_the_power_ports_and_passes_a_conservative_block():
     unit = _Unit()
-    (guard,) = passive_energy_guards({"plate": unit}, factor=2.0, judge_from_s=0.5)
+    (guard,) = _guards(unit)
     assert guard.pairs == [(0, 0)] and guard.energy_index == 1
     _drive(guard, unit, 3.0)
     assert guard.work_in_J == pytest.approx(6 * 0.5 * 0.01 * 1.0**2, rel=1e-3)  # six spin-ups to 1 rad/s
-    assert passive_energy_guards({"plate": unit}, factor=0.0, judge_from_s=0.5) == []
+    assert _guards(unit, factor=0.0) == []
+    assert passive_energy_guards({"plate": unit}, {"plate": None}, factor=2.0, judge_from_s=0.5) == []
 
 
 def test_energy_guard_stops_created_energy_naming_block_time_and_cause():
     unit = _Unit()
-    guard = passive_energy_guards({"plate": unit}, factor=2.0, judge_from_s=0.5)[0]
+    guard = _guards(unit)[0]
     # 0.05 J appear from nowhere at t = 1.2 s, over three times the 0.0145 J the ports put in by then
     with pytest.raises(StepError) as info:
         _drive(guard, unit, 3.0, extra=lambda t: 0.05 if t >= 1.2 else 0.0)
@@ -118,7 +139,7 @@ def test_energy_guard_stops_created_energy_naming_block_time_and_cause():
 
 def test_energy_guard_waits_for_the_judging_time():
     unit = _Unit()
-    guard = passive_energy_guards({"plate": unit}, factor=2.0, judge_from_s=0.5)[0]
+    guard = _guards(unit)[0]
     # 0.02 J appear at 0.1 s, four times the work by 0.5 s: stopped at the first judged sample
     with pytest.raises(StepError) as info:
         _drive(guard, unit, 1.0, extra=lambda t: 0.02 if t >= 0.1 else 0.0)

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import pytest
 
-import cosim.run
 from cosim.errors import RunInterrupted, StepError
 from cosim.run import run_scene
 from cosim.scene import scene_from_dict
+from cosim.simulator import Simulator
 
 SCENE = scene_from_dict({
     "name": "stops",
@@ -25,13 +25,13 @@ SCENE = scene_from_dict({
 ])
 def test_a_stop_inside_the_master_keeps_the_partial_result(monkeypatch, raised, message,
                                                           interrupted):
-    real_run_weak = cosim.run.run_weak
+    real_advance_to = Simulator.advance_to
 
-    def failing(ctx, t0, t_end):
-        real_run_weak(ctx, t0, t_end / 2)   # half the run is recorded, then the stop comes
+    def failing(sim, t_s):
+        real_advance_to(sim, t_s / 2)   # half the run is recorded, then the stop comes
         raise raised
 
-    monkeypatch.setattr(cosim.run, "run_weak", failing)
+    monkeypatch.setattr(Simulator, "advance_to", failing)
     with pytest.raises(StepError) as info:
         run_scene(SCENE)
     error = info.value

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from cosim.errors import SceneError, StepError
-from cosim.hardware import parse_hardware, with_hardware
+from hil.hardware import parse_hardware, with_hardware
 from cosim.run import run_scene
 from cosim.scene import load_scene
 from hil.emulator import spawn_emulator
@@ -75,7 +75,7 @@ def test_cli_writes_partial_results_and_the_fault_when_the_device_dies(tmp_path)
     killer.start()
     try:
         done = subprocess.run(
-            [sys.executable, "-m", "cosim.cli", "run", "testbed", "--quiet", "--no-figure", "--out", str(tmp_path),
+            [sys.executable, "-m", "featherstar", "run", "testbed", "--quiet", "--no-figure", "--out", str(tmp_path),
              "--hardware", f"servo={emulator.servo_url}&safe_timeout_s=0.5", "--hardware", f"loadcell={emulator.loadcell_url}",
              "--set", "feather.morphology=plain", "--set", "master.periods=8"],
             capture_output=True, text=True, timeout=120)

@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from cosim.cli import main
-from cosim.hardware import split_url, with_hardware
+from featherstar.app import main
+from hil.hardware import split_url, with_hardware
 from cosim.scene import load_scene
 from hil.emulator import spawn_emulator
 

@@ -32,7 +32,7 @@ RUN_S = 6.0
 
 def _start_run(emulator, out: Path, url_options: str = URL_OPTIONS) -> subprocess.Popen:
     return subprocess.Popen(
-        [sys.executable, "-m", "cosim.cli", "run", "testbed", "--quiet", "--no-figure",
+        [sys.executable, "-m", "featherstar", "run", "testbed", "--quiet", "--no-figure",
          "--out", str(out),
          "--hardware", f"servo={emulator.servo_url}{url_options}",
          "--hardware", f"loadcell={emulator.loadcell_url}{url_options}",

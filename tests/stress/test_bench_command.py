@@ -8,7 +8,7 @@ import textwrap
 
 import pytest
 
-from cosim.cli import main
+from featherstar.app import main
 from cosim.dashboard import BenchError, find_bench_dir, run_dashboard
 
 
@@ -19,13 +19,16 @@ def test_bench_is_a_featherstar_command(capsys):
     assert "--quick" in capsys.readouterr().out
 
 
-def test_outside_a_checkout_it_says_where_it_looked(tmp_path, monkeypatch, capsys):
+def test_outside_a_checkout_it_says_where_it_looked_and_runs_its_own_measurements(tmp_path, monkeypatch):
+    """An installed package has no bench/: the dashboard says so and still writes its report."""
     monkeypatch.chdir(tmp_path)
     with pytest.raises(BenchError, match="no bench/ folder"):
         find_bench_dir()
-    assert main(["bench", "--quick"]) == 2
-    err = capsys.readouterr().err
-    assert "featherstar: error: no bench/ folder" in err and str(tmp_path) in err
+    said: list[str] = []
+    report = run_dashboard(quick=True, measure=False, log=said.append)
+    assert any("no bench/ folder" in line and str(tmp_path) in line for line in said)
+    assert report["bench_dir"] is None and report["benches"] == {}
+    assert (tmp_path / "bench-results" / "dashboard.json").is_file()
 
 
 def test_runs_every_script_and_writes_one_report(tmp_path, monkeypatch):

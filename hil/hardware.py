@@ -21,14 +21,21 @@ import math
 from typing import Any, Mapping
 from urllib.parse import parse_qsl, urlencode, urlsplit, urlunsplit
 
-from .errors import SceneError
-from .scene import Scene, scene_from_dict
+from cosim.errors import SceneError
+from cosim.scene import Scene, scene_from_dict
+
+from .blocks import LoadCell, Servo
 
 SLOTS = ("servo", "loadcell")
 LOADCELL_BLOCK = "loadcell_hw"
 BLOCK_OPTIONS = {"servo": ("timeout_s", "reconnect_s", "start_timeout_s", "start_retry_s",
                            "safe_timeout_s"),
                  "loadcell": ("timeout_s", "reconnect_s", "start_timeout_s", "start_retry_s")}
+def _factory(cls: type) -> str:
+    """The scene's `factory` reference of a block class ("package.module:Class")."""
+    return f"{cls.__module__}:{cls.__qualname__}"
+
+
 UNACTUATED_WARNING = ("the load cell is real but the servo is simulated: nothing the run "
                       "commands moves the feather it measures")
 
@@ -85,7 +92,7 @@ def with_hardware(scene: Scene, hardware: Mapping[str, str], *, step_s: float = 
         if blocks.get("servo", {}).get("kind") != "fmu":
             raise SceneError(f"scene '{scene.name}' has no simulated 'servo' block to replace")
         url, options = split_url("servo", hardware["servo"])
-        blocks["servo"] = {"kind": "python", "factory": "hil.blocks:Servo",
+        blocks["servo"] = {"kind": "python", "factory": _factory(Servo),
                            "parameters": {"url": url, **options}}
         data["connections"] = [c for c in data["connections"]
                                if not c.replace(" ", "").endswith("->servo.load_torque_Nm")]
@@ -94,7 +101,7 @@ def with_hardware(scene: Scene, hardware: Mapping[str, str], *, step_s: float = 
         parameters: dict[str, Any] = {"url": url, **options}
         if "servo" not in hardware:
             parameters["warning"] = UNACTUATED_WARNING
-        blocks[LOADCELL_BLOCK] = {"kind": "python", "factory": "hil.blocks:LoadCell",
+        blocks[LOADCELL_BLOCK] = {"kind": "python", "factory": _factory(LoadCell),
                                   "parameters": parameters}
         data["metrics"]["thrust"] = f"{LOADCELL_BLOCK}.thrust_N"
         for block in blocks.values():

@@ -1,10 +1,9 @@
-"""`featherstar` command line: `run` and `scenes` here; other packages add their subcommands
-through `register(subparsers)` (fmu_src: build; optimizer; hil), each handler being args.func."""
+"""`featherstar run` and `featherstar scenes`: run a scene (optionally with hardware blocks swapped
+in, hil.hardware) and list the shipped scenes. Registered by featherstar.app."""
 from __future__ import annotations
 
 import argparse
 import contextlib
-import importlib
 import logging
 import signal
 import sys
@@ -13,9 +12,7 @@ import threading
 from pathlib import Path
 from typing import Iterator, Sequence
 
-from fmu_src.errors import FeatherstarError
-
-PLUGINS = ("fmu_src.cli", "optimizer.cli", "hil.cli", "cosim.dashboard")
+from .terminal import EXIT_FOR_SIGNAL, one_line
 
 
 def _parse_set(items: Sequence[str]) -> dict[str, str]:
@@ -30,7 +27,7 @@ def _parse_set(items: Sequence[str]) -> dict[str, str]:
 
 def _check_out_dir(out: Path) -> None:
     """Refuse an --out that cannot be written before the run, not after it."""
-    from .errors import SceneError
+    from cosim.errors import SceneError
 
     try:
         out.mkdir(parents=True, exist_ok=True)
@@ -40,15 +37,12 @@ def _check_out_dir(out: Path) -> None:
         raise SceneError(f"--out {out}: cannot write there ({exc.strerror or exc})") from None
 
 
-_EXIT_FOR_SIGNAL = {"SIGINT": 130, "SIGTERM": 143, "SIGHUP": 129}
-
-
 @contextlib.contextmanager
 def _stop_signals() -> Iterator[None]:
     """SIGINT/SIGTERM/SIGHUP stop the run once, as Ctrl-C does (so blocks are closed and the
     servo commanded to its safe position); repeats while that happens are only reported, so a
     second Ctrl-C cannot cut the safe stop short."""
-    from .errors import RunInterrupted
+    from cosim.errors import RunInterrupted
 
     if threading.current_thread() is not threading.main_thread():
         yield
@@ -63,7 +57,7 @@ def _stop_signals() -> Iterator[None]:
         fired.append(name)
         raise RunInterrupted(name)
 
-    names = [n for n in _EXIT_FOR_SIGNAL if hasattr(signal, n)]
+    names = [n for n in EXIT_FOR_SIGNAL if hasattr(signal, n)]
     previous = {n: signal.signal(getattr(signal, n), handler) for n in names}
     try:
         yield
@@ -73,9 +67,9 @@ def _stop_signals() -> Iterator[None]:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from .report import summary_table, write_outputs
-    from .run import run_scene
-    from .errors import StepError
+    from cosim.errors import StepError
+    from cosim.report import summary_table, write_outputs
+    from cosim.run import run_scene
 
     try:
         overrides = _parse_set(args.set)
@@ -87,8 +81,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         _check_out_dir(args.out)
     scene = args.scene
     if args.hardware:
-        from .hardware import parse_hardware, with_hardware
-        from .scene import load_scene
+        from cosim.scene import load_scene
+        from hil.hardware import parse_hardware, with_hardware
 
         # The hardware blocks report every fault themselves (one line, with device and time);
         # pymodbus' own log of the same event would only bury it.
@@ -110,8 +104,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
                                         .get("safe_position_confirmed") or {}).items() if not ok]
         if unsafe:
             where += f"; WARNING: {', '.join(unsafe)} did not acknowledge its safe position"
-        print(f"featherstar: error: {_one_line(exc)}{where}", file=sys.stderr)
-        return _EXIT_FOR_SIGNAL.get(exc.interrupted or "", 2)
+        print(f"featherstar: error: {one_line(exc)}{where}", file=sys.stderr)
+        return EXIT_FOR_SIGNAL.get(exc.interrupted or "", 2)
     print(summary_table(result.summary))
     for note in result.info.get("notes", []):
         print(f"  note: {note}")
@@ -125,16 +119,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _one_line(exc: BaseException) -> str:
-    # Drop the "  - " bullets of multi-problem errors, not the dashes of an option's name.
-    lines = [ln.strip().removeprefix("- ").strip() for ln in str(exc).splitlines() if ln.strip()]
-    if not lines:
-        return type(exc).__name__
-    return lines[0] + (" " + "; ".join(lines[1:]) if len(lines) > 1 else "")
-
-
 def _cmd_scenes(args: argparse.Namespace) -> int:
-    from .scene import list_scenes
+    from cosim.scene import list_scenes
 
     rows = list_scenes()
     width = max((len(n) for n, _ in rows), default=0)
@@ -143,12 +129,12 @@ def _cmd_scenes(args: argparse.Namespace) -> int:
     return 0
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="featherstar", description="Co-simulation toolkit for soft robotic swimmers")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+def register(sub: argparse._SubParsersAction) -> None:
+    """Adds `run` and `scenes` to the featherstar command line."""
     run = sub.add_parser("run", help="run a scene and summarise it (TR, mean thrust, speed)",
-                         description="Run a shipped scene (see `featherstar scenes`) or a scene TOML file.")
-    run.add_argument("scene", help="scene name or path to a .toml file")
+                         description="Run a shipped scene (see `featherstar scenes`), a scene TOML file or an "
+                         "SSP 1.0 package (see `featherstar export-ssp`).")
+    run.add_argument("scene", help="scene name, path to a .toml file, or an SSP 1.0 package (.ssp)")
     run.add_argument("--set", action="append", default=[], metavar="BLOCK.PARAM=VALUE",
                      help="override a block parameter or option, or master.*/metrics.* (repeatable), e.g. "
                           "feather.morphology=spanwise controller.period_s=3 master.coupling=jacobi")
@@ -169,36 +155,3 @@ def build_parser() -> argparse.ArgumentParser:
     run.set_defaults(func=_cmd_run)
     scenes = sub.add_parser("scenes", help="list the shipped scenes")
     scenes.set_defaults(func=_cmd_scenes)
-    for module in PLUGINS:
-        try:
-            mod = importlib.import_module(module)
-        except ImportError:
-            continue  # an optional package is missing: its subcommands are simply absent
-        register = getattr(mod, "register", None)
-        if register is not None:
-            try:
-                register(sub)
-            except Exception as exc:  # a broken plugin must not break run/scenes
-                print(f"featherstar: could not load {module} commands: {exc}", file=sys.stderr)
-    return parser
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    if not getattr(args, "func", None):
-        parser.print_help()
-        return 2
-    try:
-        return int(args.func(args) or 0)
-    except FeatherstarError as exc:
-        print(f"featherstar: error: {_one_line(exc)}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt as exc:   # before or after a run: nothing to keep
-        name = getattr(exc, "signal_name", "SIGINT")
-        print(f"featherstar: interrupted by {name}", file=sys.stderr)
-        return _EXIT_FOR_SIGNAL.get(name, 130)
-
-
-if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())

@@ -1,0 +1,262 @@
+"""SSP 1.0 packages: a scene exported and run back gives identical results (the testbed too, on
+FMI 3.0 and on FMI 2.0 FMUs); a hand-written package with system-level .ssv bindings and system
+outputs runs; what featherstar cannot map is refused naming the element."""
+from __future__ import annotations
+
+import re
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+from fmpy import read_model_description
+from fmpy.validation import validate_fmu
+
+from conftest import OSCILLATOR, make_scene
+from featherstar.app import main
+from cosim.errors import SceneError
+from cosim.run import run_scene
+from cosim.scene import load_scene
+from cosim.ssp import NS, SSD_NAME
+from cosim.ssp_export import export_ssp
+
+# The oscillator pair plus an FMU driven by a featherstar constant (through a system input
+# connector) and driving a featherstar gain (through a system output connector).
+MIXED = dict(
+    connections=[*OSCILLATOR["connections"], "source.u -> g.u", "g.y -> scale.u"],
+    blocks={
+        "g": {"kind": "fmu", "model": "toys:gain", "parameters": {"gain": 2.0}},
+        "source": {"kind": "constant", "outputs": {"u": {"value": 1.0, "unit": "1"}}},
+        "scale": {"kind": "gain", "gain": -1.0},
+        "rec": {"kind": "recorder", "signals": ["a.position_m", "b.force_N", "g.y", "scale.y"]},
+    },
+    master={"t_end_s": 2.0},
+)
+OVERRIDES = {"b.coupling_stiffness_N_m": 50, "source.u": 3.0, "g.offset": -0.5}
+
+
+@pytest.fixture(scope="module")
+def mixed_ssp(tmp_path_factory) -> Path:
+    return export_ssp(make_scene(OSCILLATOR, **MIXED), tmp_path_factory.mktemp("ssp") / "mixed.ssp", OVERRIDES)
+
+
+def assert_identical(a, b) -> None:
+    assert np.array_equal(a.time, b.time)
+    assert set(a.signals) == set(b.signals)
+    for name in a.signals:
+        assert np.array_equal(a[name], b[name]), name
+
+
+def test_exported_package_is_standard_ssp_and_runs_back_identically(mixed_ssp):
+    archive = zipfile.ZipFile(mixed_ssp)
+    assert sorted(archive.namelist()) == [SSD_NAME, "resources/a.fmu", "resources/b.fmu", "resources/g.fmu"]
+    ssd = archive.read(SSD_NAME).decode()
+    assert f'xmlns:ssd="{NS["ssd"]}"' in ssd and 'type="application/x-fmu-sharedlibrary"' in ssd
+    assert '<ssd:Connector name="source.u" kind="input">' in ssd  # featherstar block -> FMU input
+    assert '<ssd:Connection startConnector="source.u" endElement="g" endConnector="u" />' in ssd
+    assert '<ssd:Connection startElement="g" startConnector="y" endConnector="scale.u" />' in ssd
+    assert re.search(r'<ssv:Parameter name="coupling_stiffness_N_m">\s*<ssv:Real value="50.0" />', ssd)
+    for name in ("a", "b", "g"):
+        archive.extract(f"resources/{name}.fmu", mixed_ssp.parent)
+        assert validate_fmu(str(mixed_ssp.parent / "resources" / f"{name}.fmu")) == []
+
+    direct = run_scene(make_scene(OSCILLATOR, **MIXED), OVERRIDES)
+    back = run_scene(mixed_ssp)
+    assert_identical(direct, back)
+    assert back["scale.y"][-1] == -(2.0 * 3.0 - 0.5)
+    # Overrides apply to a package as to a scene.
+    assert run_scene(mixed_ssp, {"source.u": 1.0})["g.y"][-1] == 2.0 * 1.0 - 0.5
+
+
+def test_testbed_round_trip_on_fmi3_and_fmi2(tmp_path):
+    short = {"feather.morphology": "plain", "master.periods": 1, "metrics.settle_periods": 0}
+    direct = run_scene("testbed", short)
+    for fmi_version in (3, 2):
+        package = export_ssp("testbed", tmp_path / f"testbed-fmi{fmi_version}.ssp", short, fmi_version=fmi_version)
+        scene = load_scene(package)
+        versions = {read_model_description(scene.block(b).settings["fmu"]).fmiVersion for b in ("servo", "feather")}
+        assert versions == {f"{fmi_version}.0"}
+        back = run_scene(package)
+        if fmi_version == 3:
+            assert_identical(direct, back)
+        else:  # the same shell behind the FMI 2.0 adapter: the same numbers
+            assert np.array_equal(direct.time, back.time)
+            for name in direct.signals:
+                assert np.max(np.abs(direct[name] - back[name])) <= 1e-10, name
+        assert back.summary["thrust_ratio"] == direct.summary["thrust_ratio"]
+
+
+FOREIGN_SSD = """<?xml version="1.0" encoding="UTF-8"?>
+<ssd:SystemStructureDescription version="1.0" name="foreign"
+    xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"
+    xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon">
+  <ssd:System name="root">
+    <ssd:Connectors>
+      <ssd:Connector name="force_out" kind="output"><ssc:Real/></ssd:Connector>
+    </ssd:Connectors>
+    <ssd:ParameterBindings>
+      <ssd:ParameterBinding type="application/x-ssp-parameter-set" source="resources/params.ssv"/>
+    </ssd:ParameterBindings>
+    <ssd:Elements>
+      <ssd:Component name="a" source="resources/a.fmu" implementation="ModelExchange"/>
+      <ssd:Component name="b" type="application/x-fmu-sharedlibrary" source="./resources/b.fmu"/>
+    </ssd:Elements>
+    <ssd:Connections>
+      <ssd:Connection startElement="a" startConnector="position_m" endElement="b" endConnector="other_position_m"/>
+      <ssd:Connection startElement="a" startConnector="velocity_m_s" endElement="b" endConnector="other_velocity_m_s"/>
+      <ssd:Connection startElement="b" startConnector="force_N" endElement="a" endConnector="force_N">
+        <ssd:ConnectionGeometry pointsX="1" pointsY="2"/>
+      </ssd:Connection>
+      <ssd:Connection startElement="b" startConnector="force_N" endConnector="force_out"/>
+    </ssd:Connections>
+    <ssd:Annotations>
+      <ssc:Annotation type="org.openmodelica"><x/></ssc:Annotation>
+    </ssd:Annotations>
+  </ssd:System>
+  <ssd:DefaultExperiment startTime="0" stopTime="2.5"/>
+</ssd:SystemStructureDescription>
+"""
+FOREIGN_SSV = """<?xml version="1.0" encoding="UTF-8"?>
+<ssv:ParameterSet version="1.0" name="p" xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues">
+  <ssv:Parameters>
+    <ssv:Parameter name="b.coupling_stiffness_N_m"><ssv:Real value="50"/></ssv:Parameter>
+    <ssv:Parameter name="a.mass_kg"><ssv:Integer value="2"/></ssv:Parameter>
+  </ssv:Parameters>
+</ssv:ParameterSet>
+"""
+
+
+def write_package(path: Path, ssd: str, source: Path, extra: dict[str, str] | None = None) -> Path:
+    """A package with `ssd` as its SystemStructure.ssd and the FMUs of the package `source`."""
+    with zipfile.ZipFile(source) as original, zipfile.ZipFile(path, "w") as archive:
+        for member in original.namelist():
+            if member.endswith(".fmu"):
+                archive.writestr(member, original.read(member))
+        archive.writestr(SSD_NAME, ssd)
+        for name, text in (extra or {}).items():
+            archive.writestr(name, text)
+    return path
+
+
+def test_foreign_package_with_ssv_file_and_system_output_runs(mixed_ssp, tmp_path):
+    package = write_package(tmp_path / "foreign.ssp", FOREIGN_SSD, mixed_ssp, {"resources/params.ssv": FOREIGN_SSV})
+    # A package without featherstar's annotation runs on the default master settings.
+    master = {key: OSCILLATOR["master"][key] for key in ("rtol", "atol", "output_interval_s")}
+    result = run_scene(package, {f"master.{key}": value for key, value in master.items()})
+    assert result.time[-1] == pytest.approx(2.5)
+    assert list(result.signals) == ["b.force_N"]  # the system output, recorded
+    reference = run_scene(make_scene(OSCILLATOR, master={"t_end_s": 2.5}),
+                          {"b.coupling_stiffness_N_m": 50, "a.mass_kg": 2})
+    assert np.array_equal(result.time, reference.time)
+    assert np.array_equal(result["b.force_N"], reference["b.force_N"])
+
+
+def mutated(mixed_ssp: Path, tmp_path: Path, old: str, new: str, count: int = 1) -> Path:
+    ssd = zipfile.ZipFile(mixed_ssp).read(SSD_NAME).decode()
+    assert old in ssd, old
+    return write_package(tmp_path / "bad.ssp", ssd.replace(old, new, count), mixed_ssp)
+
+
+@pytest.mark.parametrize("old, new, message", [
+    ('<ssd:Connection startElement="a" startConnector="position_m" endElement="b" endConnector="other_position_m" />',
+     '<ssd:Connection startElement="a" startConnector="position_m" endElement="b" endConnector="other_position_m">'
+     '<ssc:LinearTransformation factor="2"/></ssd:Connection>',
+     "ssc:LinearTransformation on the ssd:Connection a.position_m -> b.other_position_m"),
+    ('endElement="b" endConnector="other_velocity_m_s"', 'endElement="nobody" endConnector="other_velocity_m_s"',
+     "ssd:Connection a.velocity_m_s -> nobody.other_velocity_m_s names element 'nobody', which is not a component"),
+    ('endElement="b" endConnector="other_velocity_m_s"', 'endElement="b"',
+     "ssd:Connection a.velocity_m_s -> b needs a startConnector and an endConnector"),
+    ("<ssd:Elements>", '<ssd:Elements><ssd:System name="inner"/>',
+     "ssd:System 'inner': featherstar maps a flat system of FMU components only"),
+    ('type="application/x-fmu-sharedlibrary" source="resources/g.fmu"',
+     'type="application/x-ssp-package" source="resources/g.fmu"',
+     "ssd:Component 'g' has type 'application/x-ssp-package'"),
+    ('source="resources/g.fmu"', 'source="resources/missing.fmu"',
+     "ssd:Component 'g' source 'resources/missing.fmu' is not in the package"),
+    ('<ssv:Real value="50.0" />', '<ssv:Boolean value="true" />',
+     "ssv:Parameter 'coupling_stiffness_N_m' in the ssd:ParameterBinding of ssd:Component 'b' is ssv:Boolean"),
+    ('<ssv:Real value="50.0" />', '<ssv:Real value="fifty" />',
+     "ssv:Parameter 'coupling_stiffness_N_m' in the ssd:ParameterBinding of ssd:Component 'b' value = 'fifty' is not a number"),
+    ('<ssd:ParameterValues>', '<ssd:ParameterMapping/><ssd:ParameterValues>',
+     "ssd:ParameterMapping in the ssd:ParameterBinding of ssd:Component 'a'"),
+    ('<fs:Scene format="json">{', '<fs:Scene format="json">{{',
+     "ssc:Annotation 'org.featherstar.scene': fs:Scene is not valid JSON"),
+    ('startConnector="source.u"', 'startConnector="elsewhere.u"',
+     "ssd:Connection elsewhere.u -> g.u: the system has no input connector 'elsewhere.u'"),
+    ("</ssd:System>", '</ssd:System><ssd:DefaultExperiment startTime="1.0" stopTime="3.0" />',
+     "ssd:DefaultExperiment startTime = 1.0: featherstar runs start at t = 0"),
+    ("<ssd:Elements>", "<ssd:SignalDictionaries/><ssd:Elements>",
+     "ssd:SignalDictionaries in ssd:System 'oscillator': featherstar cannot map it"),
+])
+def test_malformed_package_is_refused_naming_the_element(mixed_ssp, tmp_path, old, new, message):
+    with pytest.raises(SceneError) as refused:
+        load_scene(mutated(mixed_ssp, tmp_path, old, new))
+    assert message in str(refused.value)
+
+
+def test_broken_archives_are_refused(mixed_ssp, tmp_path):
+    (tmp_path / "text.ssp").write_text("not a zip")
+    with pytest.raises(SceneError, match="not a zip archive"):
+        load_scene(tmp_path / "text.ssp")
+    with zipfile.ZipFile(tmp_path / "empty.ssp", "w") as archive:
+        archive.writestr("resources/a.fmu", b"")
+    with pytest.raises(SceneError, match="no SystemStructure.ssd at the top of the package"):
+        load_scene(tmp_path / "empty.ssp")
+    with zipfile.ZipFile(tmp_path / "escape.ssp", "w") as archive:
+        archive.writestr("../evil.txt", "x")
+    with pytest.raises(SceneError, match="archive member '../evil.txt' points outside the package"):
+        load_scene(tmp_path / "escape.ssp")
+    package = write_package(tmp_path / "notxml.ssp", "<ssd:System", mixed_ssp)
+    with pytest.raises(SceneError, match="SystemStructure.ssd is not well-formed XML"):
+        load_scene(package)
+    with pytest.raises(SceneError, match="FMU 'b.fmu' has no tunable/fixed parameter 'nonsense'"):
+        run_scene(mixed_ssp, {"b.nonsense": 1.0})
+
+
+def test_cli_export_and_run(mixed_ssp, tmp_path, capsys):
+    scene_file = tmp_path / "mixed.toml"
+    scene_file.write_text(SCENE_TOML)
+    package = tmp_path / "out" / "mixed.ssp"
+    assert main(["export-ssp", str(scene_file), "--out", str(package), "--set", "source.u=3"]) == 0
+    assert capsys.readouterr().out.strip() == str(package)
+    assert main(["run", str(package), "-q", "--no-figure", "--out", str(tmp_path / "run")]) == 0
+    assert (tmp_path / "run" / "results.csv").is_file()
+    capsys.readouterr()
+    assert main(["run", str(tmp_path / "nothing.ssp"), "-q"]) == 2
+    assert f"SSP package '{tmp_path / 'nothing.ssp'}': no such file" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["export-ssp", str(scene_file), "--out", str(tmp_path / "x.zip")])
+
+
+SCENE_TOML = """
+name = "mixed"
+connections = ["source.u -> g.u", "g.y -> scale.u"]
+[master]
+t_end_s = 0.5
+[blocks.g]
+kind = "fmu"
+model = "toys:gain"
+[blocks.source]
+kind = "constant"
+outputs = { u = { value = 1.0, unit = "1" } }
+[blocks.scale]
+kind = "gain"
+gain = -1.0
+[blocks.rec]
+kind = "recorder"
+signals = ["scale.y"]
+"""
+
+
+@pytest.mark.parametrize("coupling", ["strong", "jacobi", "gauss-seidel"])
+def test_fmi2_fmus_give_the_fmi3_results_under_every_coupling(tmp_path, coupling):
+    """Model Exchange (strong) and Co-Simulation (weak couplings) through the FMI 2.0 adapter."""
+    settings = {"master.coupling": coupling, "master.step_s": 0.01}
+    direct = run_scene(make_scene(OSCILLATOR), settings)
+    package = export_ssp(make_scene(OSCILLATOR), tmp_path / "osc2.ssp", fmi_version=2)
+    assert {read_model_description(load_scene(package).block(b).settings["fmu"]).fmiVersion
+            for b in ("a", "b")} == {"2.0"}
+    back = run_scene(package, settings)
+    assert np.array_equal(direct.time, back.time)
+    for name in direct.signals:
+        assert np.max(np.abs(direct[name] - back[name])) <= 1e-10, name

@@ -1,0 +1,161 @@
+"""Bad input to `featherstar calibrate` and to `optimize --prior`: refused with one clear line,
+before any simulation runs."""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from optimizer.bayes import optimize
+from optimizer.calibration import calibrate
+from optimizer.cli import main as optimizer_main
+from optimizer.errors import OptimizerError
+from optimizer.evaluation import MeasurementPlan
+from optimizer.loadcell import LoadCell
+from optimizer.recordings import read_recording
+from optimizer.sim_prior import SimPrior, study_morphology
+from optimizer.space import stroke_space
+from optimizer.synthetic import SyntheticFeather
+
+
+def _write_run(path, *, header="time [s],servo.angle_rad [rad],loadcell_hw.thrust_N [N]", angle_scale=1.0,
+               thrust_scale=1.0, phase=0.0, time_scale=1.0):
+    t = np.arange(0.0, 1.2, 0.004)
+    angle = angle_scale * 0.5 * np.sin(2 * np.pi * t + phase)
+    thrust = thrust_scale * 0.1 * np.cos(2 * np.pi * t)
+    path.write_text(header + "\n" + "\n".join(f"{a:.6f},{b:.6f},{c:.6f}" for a, b, c in zip(t * time_scale, angle, thrust)) + "\n")
+    return path
+
+
+def _one_line_error(capsys, argv):
+    assert optimizer_main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1, err
+    return err
+
+
+def test_a_featherstar_run_csv_is_read_in_si_units(tmp_path):
+    run = read_recording(_write_run(tmp_path / "a.csv"))
+    assert run.units == ("s", "rad", "N") and run.time_s[0] == 0.0
+    converted = read_recording(_write_run(tmp_path / "b.csv", header="t_ms,angle_deg,thrust_mN",
+                                          angle_scale=180 / math.pi, thrust_scale=1e3, time_scale=1e3))
+    assert np.allclose(converted.time_s, run.time_s, atol=1e-9)
+    assert np.allclose(converted.angle_rad, run.angle_rad, atol=1e-5)
+    assert np.allclose(converted.thrust_N, run.thrust_N, atol=1e-6)
+
+
+def test_a_csv_without_the_needed_columns_is_refused(tmp_path, capsys):
+    csv = _write_run(tmp_path / "a.csv", header="time [s],servo.angle_rad [rad],pressure [Pa]")
+    err = _one_line_error(capsys, ["calibrate", str(csv), "--window-s", "1", "--out", str(tmp_path / "o")])
+    assert "no thrust column" in err and "a.csv" in err
+
+
+def test_runs_in_different_units_are_refused(tmp_path, capsys):
+    a = _write_run(tmp_path / "a.csv")
+    b = _write_run(tmp_path / "b.csv", header="time [s],servo.angle_rad [rad],loadcell_hw.thrust_N [mN]",
+                   thrust_scale=1e3)
+    err = _one_line_error(capsys, ["calibrate", str(a), str(b), "--window-s", "1", "--out", str(tmp_path / "o")])
+    assert "same units" in err and "b.csv" in err
+
+
+def test_runs_of_different_strokes_are_refused(tmp_path, capsys):
+    a = _write_run(tmp_path / "a.csv")
+    b = _write_run(tmp_path / "b.csv", phase=0.5)
+    err = _one_line_error(capsys, ["calibrate", str(a), str(b), "--window-s", "1", "--out", str(tmp_path / "o")])
+    assert "repeat one stroke" in err and "b.csv" in err
+
+
+@pytest.mark.parametrize("fit, message", [
+    ("drag_coeff=-1,3", "outside the physical range [0, 10]"),
+    ("added_mass_scale=0.5,4", "outside the physical range [0, 3]"),
+    ("hinge_stiffness_Nm_rad_m", "has no such coefficient"),   # a plain feather has no hinge
+    ("oscillatory_drag", "a switch"),
+])
+def test_a_coefficient_range_outside_physics_is_refused(tmp_path, capsys, fit, message):
+    a = _write_run(tmp_path / "a.csv")
+    err = _one_line_error(capsys, ["calibrate", str(a), "--window-s", "1", "--set", "feather.morphology=plain",
+                                   "--fit", fit, "--out", str(tmp_path / "o")])
+    assert message in err
+
+
+def test_calibrate_refuses_before_simulating(tmp_path):
+    run = read_recording(_write_run(tmp_path / "a.csv"))
+    with pytest.raises(OptimizerError, match="period of the runs is unknown"):
+        calibrate([run], "testbed", {})
+    with pytest.raises(OptimizerError, match="shorter than the fit window"):
+        calibrate([run], "testbed", {}, window_s=5.0)
+
+
+def _simulated_study(directory, morphology):
+    space = stroke_space(1.5)
+    plan = MeasurementPlan(load_cell=LoadCell(noise_sd_N=0.0), settle_periods=1, periods=1)
+    optimize(SyntheticFeather(morphology=morphology), space, directory / "evaluations.jsonl", iterations=4, plan=plan,
+             context={"scene": f"synthetic:{morphology}", "overrides": {}})
+    return space
+
+
+def test_a_prior_of_another_morphology_is_refused(tmp_path, capsys):
+    space = _simulated_study(tmp_path / "sim", "spanwise")
+    with pytest.raises(OptimizerError, match="optimized a spanwise feather, this study measures a chordwise"):
+        SimPrior.load(tmp_path / "sim", feather={"morphology": "chordwise"}, space=space, maximize=True)
+    err = _one_line_error(capsys, [
+        "optimize", "testbed", "--out", str(tmp_path / "bench"), "--prior", str(tmp_path / "sim"),
+        "--hardware", "servo=modbus-tcp://127.0.0.1:1?unit=2", "--hardware", "loadcell=modbus-tcp://127.0.0.1:1?unit=1"])
+    assert "--prior" in err and "spanwise" in err and "chordwise (width_ratio 7.5)" in err
+
+
+def test_a_prior_of_the_same_feather_gives_its_best_strokes_first(tmp_path):
+    space = _simulated_study(tmp_path / "sim", "chordwise")
+    prior = SimPrior.load(tmp_path / "sim", feather=study_morphology("synthetic:chordwise", {}), space=space,
+                          maximize=True)
+    points = prior.initial_points(space, 3, maximize=True)
+    values = dict(zip([tuple(sorted(p.items())) for p in prior.points], prior.values))
+    assert values[tuple(sorted(points[0].items()))] == max(prior.values)
+    assert all(space.is_feasible(p) for p in points)
+    with pytest.raises(OptimizerError, match="it maximized TR, this study minimizes it"):
+        SimPrior.load(tmp_path / "sim", feather={"morphology": "chordwise"}, space=space, maximize=False)
+    with pytest.raises(OptimizerError, match="period_s"):
+        SimPrior.load(tmp_path / "sim", feather={"morphology": "chordwise"}, space=stroke_space(3.0), maximize=True)
+
+
+def test_calibration_recovers_coefficients_from_simulated_recordings(tmp_path):
+    """The fit without real time: recordings as the emulator's plant would serve them (servo and
+    feather FMUs Gauss-Seidel at 1 ms, read every 4 ms, angle in 0.01°, 5 mN noise), so this runs
+    on a machine too loaded for the emulator tests."""
+    from cosim.run import run_scene
+    from optimizer.recordings import Recording
+
+    hidden = {"oscillatory_drag": 0.0, "drag_coeff": 1.56, "added_mass_scale": 0.85}
+    result = run_scene("testbed", {"feather.morphology": "plain", "controller.period_s": 1.0, "master.t_end_s": 1.6,
+                                   "master.coupling": "gauss-seidel", "master.step_s": 1e-3, "master.adaptive": False,
+                                   **{f"feather.{k}": v for k, v in hidden.items()}},
+                       outputs=["feather.thrust_N", "servo.angle_rad"])
+    rng = np.random.default_rng(1)
+    t = result.time[::4]
+    angle = np.round(np.degrees(result["servo.angle_rad"][::4]), 2) * math.pi / 180
+    runs = [Recording(f"run{k}", t, angle, result["feather.thrust_N"][::4] + rng.normal(0, 0.005, len(t)),
+                      ("s", "rad", "N"), 1.0) for k in range(3)]
+    calibration = calibrate(runs, "testbed", {"feather.morphology": "plain"},
+                            {"drag_coeff": None, "added_mass_scale": None}, window_s=1.5)
+    for name in ("drag_coeff", "added_mass_scale"):
+        assert calibration.values[name] == pytest.approx(hidden[name], rel=0.15), calibration.values
+        assert 0 < calibration.sd[name] < 0.1 * calibration.values[name]
+    assert calibration.parameter_set()["feather.oscillatory_drag"] == 0.0
+    assert calibration.r_squared > 0.95
+
+    # The parameter set, as --set arguments and as a scene's feather parameters line.
+    from cosim.scene import load_scene
+    from optimizer.cli_calibrate import write_calibration
+
+    paths = write_calibration(calibration, tmp_path / "cal", runs=["run0", "run1", "run2"], scene="testbed",
+                              overrides={"feather.morphology": "plain"})
+    assert (tmp_path / "cal" / "set.txt").read_text().startswith("--set feather.oscillatory_drag=0 --set feather.drag_coeff=")
+    line = next(ln for ln in paths[2].read_text().splitlines() if ln.startswith("parameters"))
+    scene_text = Path(load_scene("testbed").source).read_text()
+    scene_text = "\n".join(line if ln.startswith("parameters = {") else ln for ln in scene_text.splitlines())
+    (tmp_path / "calibrated.toml").write_text(scene_text)
+    feather = load_scene(tmp_path / "calibrated.toml").to_dict()["blocks"]["feather"]["parameters"]
+    assert feather["drag_coeff"] == pytest.approx(calibration.values["drag_coeff"], rel=1e-5)
+    assert feather["oscillatory_drag"] == 0
