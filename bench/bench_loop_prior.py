@@ -4,7 +4,7 @@
 
 1. A simulated study of the plain feather (testbed scene, default coefficients, strong coupling):
    the prior, `iterations` evaluations.
-2. The emulator's plant is the analytic flat plate (hil.plant.FlatPlatePlant) with drag and
+2. The emulator's plant is the analytic flat plate (featherstar.hil.plant.FlatPlatePlant) with drag and
    added-mass coefficients the client is not told (c_n 1.6 instead of 1.2, c_a 0.5 instead of
    0.7): a rigid plate where the simulation has a flexible feather, and other coefficients, so a
    reality gap of model form and of coefficients, as a real bench has.
@@ -37,16 +37,16 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from hil.emulator import spawn_emulator  # noqa: E402
-from optimizer.bayes import optimize  # noqa: E402
-from optimizer.bench_objective import BenchObjective  # noqa: E402
-from optimizer.bench_run import BenchFault  # noqa: E402
-from optimizer.bench_study import run_bench_study  # noqa: E402
-from optimizer.evaluation import MeasurementPlan  # noqa: E402
-from optimizer.loadcell import LoadCell  # noqa: E402
-from optimizer.objective import SceneObjective  # noqa: E402
-from optimizer.sim_prior import SimPrior, study_morphology  # noqa: E402
-from optimizer.space import stroke_space  # noqa: E402
+from featherstar.hil.emulator import spawn_emulator  # noqa: E402
+from featherstar.optimizer.bayes import optimize  # noqa: E402
+from featherstar.optimizer.bench_objective import BenchObjective  # noqa: E402
+from featherstar.optimizer.bench_run import BenchFault  # noqa: E402
+from featherstar.optimizer.bench_study import run_bench_study  # noqa: E402
+from featherstar.optimizer.evaluation import MeasurementPlan  # noqa: E402
+from featherstar.optimizer.loadcell import LoadCell  # noqa: E402
+from featherstar.optimizer.objective import SceneObjective  # noqa: E402
+from featherstar.optimizer.sim_prior import SimPrior, study_morphology  # noqa: E402
+from featherstar.optimizer.space import stroke_space  # noqa: E402
 
 PERIOD_S = 1.0
 FEATHER = {"feather.morphology": "plain"}

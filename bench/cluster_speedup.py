@@ -4,7 +4,7 @@
 
 Starts two dask.distributed LocalClusters, of one and of two single-threaded worker processes,
 warms both (each worker loads the scene and its FMUs once: what a long sweep amortizes; the time
-is reported), then runs the same sweep through `optimizer.executor.DaskExecutor` on them in the
+is reported), then runs the same sweep through `featherstar.optimizer.executor.DaskExecutor` on them in the
 order 1, 2, 2, 1 workers and reports the ratio of summed wall times (1 worker / 2 workers) in
 DIR/cluster_speedup.json. Every sweep must give the same results. The default sweep is the paper's Fig. 3 spanwise family (13 lengths plus
 the root reference) under one controller, on the kinematic scene through the FMU master, as
@@ -30,11 +30,11 @@ from typing import Sequence
 
 from distributed import Client, LocalCluster
 
-from optimizer.evaluation import MeasurementPlan
-from optimizer.executor import DaskExecutor
-from optimizer.objective import SceneObjective, Trace
-from optimizer.sweep import Controller, run_sweep
-from optimizer.synthetic import SyntheticFeather
+from featherstar.optimizer.evaluation import MeasurementPlan
+from featherstar.optimizer.executor import DaskExecutor
+from featherstar.optimizer.objective import SceneObjective, Trace
+from featherstar.optimizer.sweep import Controller, run_sweep
+from featherstar.optimizer.synthetic import SyntheticFeather
 
 RESULTS_DIR = Path(__file__).resolve().parents[1] / "docs" / "results"
 FAMILY = "spanwise"
@@ -102,9 +102,9 @@ def measure(cluster: LocalCluster, objective, workers: int) -> dict:
 def warm_worker(objective) -> None:
     """Runs on every worker before timing: the first and the reference geometry once each, so
     the scene and its FMUs are loaded (the FMU cache is shared: built at most once per host)."""
-    from optimizer.evaluation import SWEEP_STREAM, evaluate
-    from optimizer.space import stroke_overrides
-    from optimizer.sweep import paper_geometries
+    from featherstar.optimizer.evaluation import SWEEP_STREAM, evaluate
+    from featherstar.optimizer.space import stroke_overrides
+    from featherstar.optimizer.sweep import paper_geometries
 
     stroke = CONTROLLER.stroke(60.0)
     for geometry in (paper_geometries(FAMILY)[0], paper_geometries(FAMILY)[-1]):

@@ -30,8 +30,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from cosim.monolithic import run_monolithic  # noqa: E402
-from cosim.run import run_scene  # noqa: E402
+from featherstar.cosim.monolithic import run_monolithic  # noqa: E402
+from featherstar.cosim.run import run_scene  # noqa: E402
 
 RESULTS = ROOT / "bench" / "results"
 

@@ -11,7 +11,7 @@ In one run, on one machine (compare the ratios: a shared machine is noisy):
    and peak RSS).
 3. The chordwise kinematic scene (6 periods of 1.5 s, CVODES Adams, rtol 1e-6): the FMU master
    on today's FMU, the same equations composed monolithically and compiled
-   (cosim.monolithic), and the FMU master on the FMU built from commit 32dc597, in rotating order,
+   (featherstar.cosim.monolithic), and the FMU master on the FMU built from commit 32dc597, in rotating order,
    `--repeats` times each, median wall times. TR of each; the old model's chaos band is the range
    of its TR at rtol 1e-6, 1e-7 and 1e-8 (the flapped feather is chaotic: TRs of accurate runs
    scatter, and a TR inside the band is as good as the old model's own).
@@ -49,10 +49,10 @@ import casadi as ca  # noqa: E402
 import matplotlib  # noqa: E402
 
 from bench.rhs_cost import rhs_ns_per_evaluation  # noqa: E402
-from cosim.monolithic import run_monolithic  # noqa: E402
-from cosim.run import run_scene  # noqa: E402
-from cosim.scene import scene_from_dict  # noqa: E402
-from fmu_src.feather import feather_model  # noqa: E402
+from featherstar.cosim.monolithic import run_monolithic  # noqa: E402
+from featherstar.cosim.run import run_scene  # noqa: E402
+from featherstar.cosim.scene import scene_from_dict  # noqa: E402
+from featherstar.fmu_src.feather import feather_model  # noqa: E402
 
 RESULTS = ROOT / "docs" / "results"
 OLD_COMMIT = "32dc597"
@@ -87,7 +87,7 @@ def in_old_tree(old: Path, code: str, cache: Path) -> str:
 
 def old_function(old: Path, morphology: str, n_units: int, cache: Path) -> ca.Function:
     path = cache / f"old_{morphology}_{n_units}.casadi"
-    in_old_tree(old, "from fmu_src.feather import feather_model\n"
+    in_old_tree(old, "from featherstar.fmu_src.feather import feather_model\n"
                      f"open({str(path)!r}, 'w').write(feather_model({morphology!r}, {n_units}).function().serialize())",
                 cache)
     return ca.Function.deserialize(path.read_text())
@@ -129,8 +129,8 @@ def rhs_costs(sizes: Sequence[int], old: Path, cache: Path, old_sizes: Sequence[
 _BUILD_ONE = """
 import sys, time
 from pathlib import Path
-from fmu_src.feather import feather_model
-from fmu_src.export import build_fmu
+from featherstar.fmu_src.feather import feather_model
+from featherstar.fmu_src.export import build_fmu
 started = time.perf_counter()
 path = build_fmu(feather_model({morphology!r}, {n_units}), Path({out!r}), force=True)
 print(time.perf_counter() - started)
@@ -153,7 +153,7 @@ def build_feather(morphology: str, n_units: int, out: Path, cache: Path, tree: P
 
 
 def cold_build_all(cache: Path) -> dict[str, Any]:
-    code = ("import time\nfrom fmu_src.catalog import MODELS\nfrom fmu_src.export import build_fmu\n"
+    code = ("import time\nfrom featherstar.fmu_src.catalog import MODELS\nfrom featherstar.fmu_src.export import build_fmu\n"
             "t = time.perf_counter()\nfor build in MODELS.values(): build_fmu(build(), force=True)\n"
             "print(time.perf_counter() - t)")
     env = dict(os.environ, PYTHONPATH=str(ROOT), FEATHERSTAR_CACHE=str(cache))

@@ -27,9 +27,9 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from cosim.stroke import Stroke, root_motion_symbolic  # noqa: E402
-from fmu_src.feather import feather_model  # noqa: E402
-from fmu_src.integrate import integrate  # noqa: E402
+from featherstar.cosim.stroke import Stroke, root_motion_symbolic  # noqa: E402
+from featherstar.fmu_src.feather import feather_model  # noqa: E402
+from featherstar.fmu_src.integrate import integrate  # noqa: E402
 
 PERIODS, SETTLE, PER_PERIOD = 6, 3, 600
 CASES = {

@@ -87,7 +87,7 @@ def energy_margins(result: Any, scene: str) -> tuple[float, float]:
 
 
 def with_guards(scene: str, overrides: dict[str, Any]) -> str:
-    from fmu_src.errors import FeatherstarError
+    from featherstar.fmu_src.errors import FeatherstarError
 
     try:
         run_case(scene, overrides)

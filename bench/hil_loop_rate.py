@@ -23,9 +23,9 @@ from pathlib import Path
 import matplotlib
 import pymodbus
 
-from hil.blocks import LoadCell, Servo
-from hil.emulator import spawn_emulator
-from hil.pacing import run_paced
+from featherstar.hil.blocks import LoadCell, Servo
+from featherstar.hil.emulator import spawn_emulator
+from featherstar.hil.pacing import run_paced
 
 RATES_HZ = (100, 250, 500)
 RESULTS = Path(__file__).resolve().parent / "results"

@@ -20,8 +20,8 @@ sys.path.insert(0, str(ROOT / "tests" / "cosim"))  # the test FMUs' builder (not
 
 from c_fmus import build  # noqa: E402
 
-from cosim.run import run_scene  # noqa: E402
-from cosim.scene import scene_from_dict  # noqa: E402
+from featherstar.cosim.run import run_scene  # noqa: E402
+from featherstar.cosim.scene import scene_from_dict  # noqa: E402
 
 T_END_S = 10.0
 

@@ -7,7 +7,7 @@
    all local cores.
 
 Goals (issue): 30 iterations < 60 s, the full sweep < 2 min on the 2-core machine. Uses the FMU
-master when `cosim.run_scene` exists, else the analytic stand-in (then the numbers measure the
+master when `featherstar.cosim.run_scene` exists, else the analytic stand-in (then the numbers measure the
 optimizer's own overhead only, and the JSON says so; --synthetic forces that, into
 optimizer_timing_synthetic.json). --quick: 10 iterations, one sweep family with two controllers (a
 smoke test, not the goal numbers). Writes bench/results/optimizer_timing.json.
@@ -22,13 +22,13 @@ import tempfile
 import time
 from pathlib import Path
 
-from optimizer.bayes import optimize
-from optimizer.evaluation import MeasurementPlan
-from optimizer.objective import SceneObjective, WithOverrides, master_available
-from optimizer.space import stroke_space
-from optimizer.study import summarize
-from optimizer.sweep import FAMILIES, PAPER_CONTROLLERS, run_sweep
-from optimizer.synthetic import SyntheticFeather
+from featherstar.optimizer.bayes import optimize
+from featherstar.optimizer.evaluation import MeasurementPlan
+from featherstar.optimizer.objective import SceneObjective, WithOverrides, master_available
+from featherstar.optimizer.space import stroke_space
+from featherstar.optimizer.study import summarize
+from featherstar.optimizer.sweep import FAMILIES, PAPER_CONTROLLERS, run_sweep
+from featherstar.optimizer.synthetic import SyntheticFeather
 
 RESULTS_DIR = Path(__file__).parent / "results"
 CHORDWISE_75 = {"feather.morphology": "chordwise", "feather.width_ratio": 7.5}
@@ -87,7 +87,7 @@ def main() -> None:
     else:
         optimization_objective = WithOverrides(SyntheticFeather(), CHORDWISE_75)
         sweep_objective = SyntheticFeather()
-        kind = "analytic stand-in (optimizer.synthetic): optimizer overhead only"
+        kind = "analytic stand-in (featherstar.optimizer.synthetic): optimizer overhead only"
     report = {
         "objective": kind,
         "quick": args.quick,

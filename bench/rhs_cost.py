@@ -18,7 +18,7 @@ from typing import Sequence
 
 import casadi as ca
 
-from fmu_src.export import HUGE_MODEL_BYTES
+from featherstar.fmu_src.export import HUGE_MODEL_BYTES
 
 _HARNESS = r"""
 #include <stdio.h>

@@ -95,7 +95,7 @@ def classify(result: Any, reference: dict[str, Any], morphology: str) -> tuple[s
 
 
 def scan_cell(cell: dict[str, Any], grid: Sequence[float], periods: int, log) -> dict[str, Any]:
-    from fmu_src.errors import FeatherstarError
+    from featherstar.fmu_src.errors import FeatherstarError
 
     # The map measures the raw edges the master's guards are set from (cosim/guards.py), so
     # they are off here: past the edge a run must show what it does, not be refused.

@@ -43,8 +43,8 @@ from scipy.optimize import minimize
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from cosim.stroke import Stroke, root_motion  # noqa: E402
-from fmu_src.fluid import dnv_added_mass_coeff, oscillatory_drag_coeff, stroke_keulegan_carpenter  # noqa: E402
+from featherstar.cosim.stroke import Stroke, root_motion  # noqa: E402
+from featherstar.fmu_src.fluid import dnv_added_mass_coeff, oscillatory_drag_coeff, stroke_keulegan_carpenter  # noqa: E402
 
 WATER_DENSITY_KG_M3 = 1000.0
 WIDTH_M, LENGTH_M = 0.075, 0.115  # the paper's feather

@@ -13,7 +13,7 @@ import sys
 from dataclasses import dataclass
 from typing import Sequence
 
-from fmu_src.errors import FeatherstarError
+from .fmu_src.errors import FeatherstarError
 
 from .terminal import EXIT_FOR_SIGNAL, one_line
 
@@ -28,11 +28,11 @@ class Subcommands:
 
 SUBCOMMANDS: tuple[Subcommands, ...] = (
     Subcommands("featherstar.run_cli", ("run", "scenes")),
-    Subcommands("fmu_src.cli", ("build",)),
-    Subcommands("cosim.ssp_cli", ("export-ssp",)),
-    Subcommands("optimizer.cli", ("optimize", "calibrate", "sweep", "codesign", "paper")),
-    Subcommands("hil.cli", ("emulate",)),
-    Subcommands("cosim.dashboard", ("bench",)),
+    Subcommands("featherstar.fmu_src.cli", ("build",)),
+    Subcommands("featherstar.cosim.ssp_cli", ("export-ssp",)),
+    Subcommands("featherstar.optimizer.cli", ("optimize", "calibrate", "sweep", "codesign", "paper")),
+    Subcommands("featherstar.hil.cli", ("emulate",)),
+    Subcommands("featherstar.cosim.dashboard", ("bench",)),
 )
 
 

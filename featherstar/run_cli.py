@@ -1,5 +1,5 @@
 """`featherstar run` and `featherstar scenes`: run a scene (optionally with hardware blocks swapped
-in, hil.hardware) and list the shipped scenes. Registered by featherstar.app."""
+in, featherstar.hil.hardware) and list the shipped scenes. Registered by featherstar.app."""
 from __future__ import annotations
 
 import argparse
@@ -27,7 +27,7 @@ def _parse_set(items: Sequence[str]) -> dict[str, str]:
 
 def _check_out_dir(out: Path) -> None:
     """Refuse an --out that cannot be written before the run, not after it."""
-    from cosim.errors import SceneError
+    from .cosim.errors import SceneError
 
     try:
         out.mkdir(parents=True, exist_ok=True)
@@ -42,7 +42,7 @@ def _stop_signals() -> Iterator[None]:
     """SIGINT/SIGTERM/SIGHUP stop the run once, as Ctrl-C does (so blocks are closed and the
     servo commanded to its safe position); repeats while that happens are only reported, so a
     second Ctrl-C cannot cut the safe stop short."""
-    from cosim.errors import RunInterrupted
+    from .cosim.errors import RunInterrupted
 
     if threading.current_thread() is not threading.main_thread():
         yield
@@ -67,9 +67,9 @@ def _stop_signals() -> Iterator[None]:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from cosim.errors import StepError
-    from cosim.report import summary_table, write_outputs
-    from cosim.run import run_scene
+    from .cosim.errors import StepError
+    from .cosim.report import summary_table, write_outputs
+    from .cosim.run import run_scene
 
     try:
         overrides = _parse_set(args.set)
@@ -81,8 +81,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         _check_out_dir(args.out)
     scene = args.scene
     if args.hardware:
-        from cosim.scene import load_scene
-        from hil.hardware import parse_hardware, with_hardware
+        from .cosim.scene import load_scene
+        from .hil.hardware import parse_hardware, with_hardware
 
         # The hardware blocks report every fault themselves (one line, with device and time);
         # pymodbus' own log of the same event would only bury it.
@@ -120,7 +120,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _cmd_scenes(args: argparse.Namespace) -> int:
-    from cosim.scene import list_scenes
+    from .cosim.scene import list_scenes
 
     rows = list_scenes()
     width = max((len(n) for n, _ in rows), default=0)

@@ -5,7 +5,7 @@ from typing import Any
 
 import pytest
 
-from cosim.scene import scene_from_dict
+from featherstar.cosim.scene import scene_from_dict
 
 OSCILLATOR = {
     "name": "oscillator",

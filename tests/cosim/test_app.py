@@ -21,7 +21,7 @@ def test_every_registered_subcommand_is_listed(capsys):
 
 
 def test_a_module_that_fails_to_import_is_listed_with_its_error(monkeypatch, capsys):
-    monkeypatch.setitem(sys.modules, "optimizer.cli", None)   # `import optimizer.cli` now fails
+    monkeypatch.setitem(sys.modules, "featherstar.optimizer.cli", None)   # `import optimizer.cli` now fails
     with pytest.raises(SystemExit):
         main(["--help"])
     out = capsys.readouterr().out
@@ -29,12 +29,12 @@ def test_a_module_that_fails_to_import_is_listed_with_its_error(monkeypatch, cap
     lines = [ln for ln in entries.splitlines()
              if ln.strip().startswith(("optimize", "calibrate", "sweep", "codesign", "paper"))]
     assert len(lines) == 5 and all("UNAVAILABLE" in ln for ln in lines), out
-    assert "cannot load optimizer.cli" in out and "ModuleNotFoundError" in out
+    assert "cannot load featherstar.optimizer.cli" in out and "ModuleNotFoundError" in out
     # the others still work
     assert "run " in out and "emulate" in out and out.count("UNAVAILABLE") == 5
     assert main(["optimize", "testbed", "--iterations", "3"]) == 2
     err = capsys.readouterr().err
-    assert err.startswith("featherstar optimize: unavailable: cannot load optimizer.cli: ModuleNotFoundError")
+    assert err.startswith("featherstar optimize: unavailable: cannot load featherstar.optimizer.cli: ModuleNotFoundError")
 
 
 def test_a_register_that_raises_is_reported_the_same_way(tmp_path, monkeypatch):

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from conftest import OSCILLATOR, make_scene
-from cosim.monolithic import run_monolithic
-from cosim.run import run_scene
+from featherstar.cosim.monolithic import run_monolithic
+from featherstar.cosim.run import run_scene
 
 
 @pytest.fixture(scope="module")
@@ -62,7 +62,7 @@ def test_adaptive_macro_step_rolls_back_and_meets_tolerance(oscillator, referenc
 @pytest.mark.parametrize("coupling", ["strong", "gauss-seidel"])
 def test_fmu_file_block_matches_model_block(oscillator, reference, coupling, tmp_path):
     """An FMI 3.0 FMU used by path (ports, units and feedthrough read from its XML only)."""
-    from fmu_src.export import build_fmu
+    from featherstar.fmu_src.export import build_fmu
     from toys import oscillator_b
 
     path = build_fmu(oscillator_b(), tmp_path)

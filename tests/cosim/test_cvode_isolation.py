@@ -1,12 +1,12 @@
 """The master's CVODE binding must not change fmpy's: both load the same SUNDIALS libraries."""
 import fmpy
 
-import cosim._cvode  # noqa: F401  (importing it is the hazard under test)
+import featherstar.cosim._cvode  # noqa: F401  (importing it is the hazard under test)
 
 
 def test_fmpy_model_exchange_still_works_after_loading_the_master(tmp_path):
-    from fmu_src.catalog import MODELS
-    from fmu_src.export import build_fmu
+    from featherstar.fmu_src.catalog import MODELS
+    from featherstar.fmu_src.export import build_fmu
 
     path = build_fmu(MODELS["servo"](), tmp_path)
     result = fmpy.simulate_fmu(str(path), fmi_type="ModelExchange", stop_time=0.1,

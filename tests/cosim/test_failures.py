@@ -8,8 +8,8 @@ import pytest
 
 from conftest import OSCILLATOR, make_scene
 from featherstar.app import main
-from cosim.errors import StepError
-from cosim.run import run_scene
+from featherstar.cosim.errors import StepError
+from featherstar.cosim.run import run_scene
 
 POISONED = dict(
     connections=["a.position_m -> b.other_position_m", "a.velocity_m_s -> b.other_velocity_m_s",

@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from cosim.graph import plan
-from cosim.run import run_scene
-from cosim.scene import scene_from_dict
-from cosim.stroke import Stroke, root_motion
+from featherstar.cosim.graph import plan
+from featherstar.cosim.run import run_scene
+from featherstar.cosim.scene import scene_from_dict
+from featherstar.cosim.stroke import Stroke, root_motion
 
 SOURCE = Path(__file__).parent / "fmi2_lag"
 
@@ -92,7 +92,7 @@ def test_fmi2_adaptive_rollback(lag_fmu):
 
 
 def test_unknown_fmu_parameter_is_a_scene_error(lag_fmu):
-    from cosim.errors import SceneError
+    from featherstar.cosim.errors import SceneError
 
     bad = _scene(lag_fmu, "strong").with_overrides({"lag.nope": 1.0})
     with pytest.raises(SceneError, match="has no tunable/fixed parameter 'nope'; it has: k, tau"):

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from cosim.errors import StepError
-from cosim.run import run_scene
-from cosim.scene import scene_from_dict
+from featherstar.cosim.errors import StepError
+from featherstar.cosim.run import run_scene
+from featherstar.cosim.scene import scene_from_dict
 
 PERIOD = 0.25
 

@@ -6,11 +6,11 @@ import math
 
 import pytest
 
-from cosim import graph
-from cosim.errors import SceneError, StepError
-from cosim.block import Passivity, Port, passivity_by_convention
-from cosim.guards import PassiveEnergyGuard, feedback_loops, passive_energy_guards, step_problems
-from cosim.scene import load_scene
+from featherstar.cosim import graph
+from featherstar.cosim.errors import SceneError, StepError
+from featherstar.cosim.block import Passivity, Port, passivity_by_convention
+from featherstar.cosim.guards import PassiveEnergyGuard, feedback_loops, passive_energy_guards, step_problems
+from featherstar.cosim.scene import load_scene
 
 
 def _problems(scene: str, overrides: dict) -> list[str]:

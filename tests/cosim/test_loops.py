@@ -4,8 +4,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cosim.errors import StepError
-from cosim.run import run_scene
+from featherstar.cosim.errors import StepError
+from featherstar.cosim.run import run_scene
 from conftest import make_scene
 from test_scene import LOOP
 

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from featherstar.app import main
-from cosim.preflight import cached_fmu, fmu_archive_problem
+from featherstar.cosim.preflight import cached_fmu, fmu_archive_problem
 
 LAG_XML = Path(__file__).parent / "fmi2_lag" / "modelDescription.xml"
 

@@ -9,8 +9,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cosim.monolithic import run_monolithic
-from cosim.run import run_scene
+from featherstar.cosim.monolithic import run_monolithic
+from featherstar.cosim.run import run_scene
 
 PLAIN_SHORT = {"feather.morphology": "plain", "master.periods": 2, "metrics.settle_periods": 1}
 

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import pytest
 
-from cosim.errors import RunInterrupted, StepError
-from cosim.run import run_scene
-from cosim.scene import scene_from_dict
-from cosim.simulator import Simulator
+from featherstar.cosim.errors import RunInterrupted, StepError
+from featherstar.cosim.run import run_scene
+from featherstar.cosim.scene import scene_from_dict
+from featherstar.cosim.simulator import Simulator
 
 SCENE = scene_from_dict({
     "name": "stops",

@@ -7,10 +7,10 @@ import math
 import pytest
 
 from conftest import OSCILLATOR, make_scene
-from cosim import graph
-from cosim.blocks import resolve
-from cosim.errors import SceneError
-from cosim.scene import list_scenes, load_scene, scene_from_dict
+from featherstar.cosim import graph
+from featherstar.cosim.blocks import resolve
+from featherstar.cosim.errors import SceneError
+from featherstar.cosim.scene import list_scenes, load_scene, scene_from_dict
 
 
 def test_shipped_scenes_listed_with_descriptions():

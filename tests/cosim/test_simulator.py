@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 
 from conftest import OSCILLATOR, make_scene
-from cosim.errors import SceneError, StepError
-from cosim.graph import plan
-from cosim.metrics import scene_metrics
-from cosim.run import run_scene
-from cosim.scene import load_scene
-from cosim.simulator import Simulator
+from featherstar.cosim.errors import SceneError, StepError
+from featherstar.cosim.graph import plan
+from featherstar.cosim.metrics import scene_metrics
+from featherstar.cosim.run import run_scene
+from featherstar.cosim.scene import load_scene
+from featherstar.cosim.simulator import Simulator
 
 
 @pytest.mark.parametrize("coupling", ["strong", "jacobi", "gauss-seidel"])

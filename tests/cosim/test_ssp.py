@@ -14,11 +14,11 @@ from fmpy.validation import validate_fmu
 
 from conftest import OSCILLATOR, make_scene
 from featherstar.app import main
-from cosim.errors import SceneError
-from cosim.run import run_scene
-from cosim.scene import load_scene
-from cosim.ssp import NS, SSD_NAME
-from cosim.ssp_export import export_ssp
+from featherstar.cosim.errors import SceneError
+from featherstar.cosim.run import run_scene
+from featherstar.cosim.scene import load_scene
+from featherstar.cosim.ssp import NS, SSD_NAME
+from featherstar.cosim.ssp_export import export_ssp
 
 # The oscillator pair plus an FMU driven by a featherstar constant (through a system input
 # connector) and driving a featherstar gain (through a system output connector).

@@ -4,8 +4,8 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from cosim.stroke import Stroke, root_motion, root_motion_symbolic, stroke_from_log_ratios
-from fmu_src.errors import ModelError
+from featherstar.cosim.stroke import Stroke, root_motion, root_motion_symbolic, stroke_from_log_ratios
+from featherstar.fmu_src.errors import ModelError
 
 
 def test_log_ratios_round_trip():

@@ -1,4 +1,4 @@
-"""cosim.validity: which periods of a real-time run count, on synthetic signals and events."""
+"""featherstar.cosim.validity: which periods of a real-time run count, on synthetic signals and events."""
 from __future__ import annotations
 
 import math
@@ -6,9 +6,9 @@ import math
 import numpy as np
 import pytest
 
-from cosim.metrics import thrust_metrics
-from cosim.report import summary_table
-from cosim.validity import MAX_LATE_S, apply_validity, judge_periods
+from featherstar.cosim.metrics import thrust_metrics
+from featherstar.cosim.report import summary_table
+from featherstar.cosim.validity import MAX_LATE_S, apply_validity, judge_periods
 
 PERIOD_S, STEP_S = 1.0, 0.01
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import casadi as ca
 
-from fmu_src.model import Model, Parameter, Variable
+from featherstar.fmu_src.model import Model, Parameter, Variable
 
 
 def oscillator_a(x0: float = 1.0) -> Model:

@@ -4,7 +4,7 @@ import os
 import time
 from dataclasses import dataclass
 
-from optimizer.synthetic import SyntheticFeather
+from featherstar.optimizer.synthetic import SyntheticFeather
 
 FEATHER = SyntheticFeather("chordwise")
 
@@ -28,9 +28,9 @@ def without_timing(rows):
 def fmu_run_on_this_worker():
     """A short plain-feather test-bed run through the FMU master, and what the FMU cache holds
     afterwards: (thrust ratio, pid, {fmu file: inode}, leftover partial files)."""
-    from fmu_src.export import cache_dir
-    from optimizer.evaluation import SWEEP_STREAM, MeasurementPlan, evaluate
-    from optimizer.objective import SceneObjective
+    from featherstar.fmu_src.export import cache_dir
+    from featherstar.optimizer.evaluation import SWEEP_STREAM, MeasurementPlan, evaluate
+    from featherstar.optimizer.objective import SceneObjective
 
     result = evaluate(SceneObjective("testbed", {"feather.morphology": "plain"}), {}, 1.5,
                       MeasurementPlan(settle_periods=0, periods=1), SWEEP_STREAM, (0,))

@@ -8,14 +8,14 @@ import json
 import pytest
 from dask_testing import FEATHER, fmu_run_on_this_worker, without_timing
 
-from optimizer.cli import main
-from optimizer.codesign import codesign
-from optimizer.evaluation import MeasurementPlan
-from optimizer.executor import DaskExecutor, ProcessExecutor
-from optimizer.objective import master_available
-from optimizer.space import stroke_space
-from optimizer.study import run_study
-from optimizer.sweep import Controller, run_sweep
+from featherstar.optimizer.cli import main
+from featherstar.optimizer.codesign import codesign
+from featherstar.optimizer.evaluation import MeasurementPlan
+from featherstar.optimizer.executor import DaskExecutor, ProcessExecutor
+from featherstar.optimizer.objective import master_available
+from featherstar.optimizer.space import stroke_space
+from featherstar.optimizer.study import run_study
+from featherstar.optimizer.sweep import Controller, run_sweep
 
 pytestmark = pytest.mark.dask
 
@@ -65,7 +65,7 @@ def test_codesign_on_the_cluster_equals_the_local_run(cluster, tmp_path):
     assert reports["dask"] == reports["local"]
 
 
-@pytest.mark.skipif(not master_available(), reason="cosim.run_scene (the FMU master) is not available")
+@pytest.mark.skipif(not master_available(), reason="featherstar.cosim.run_scene (the FMU master) is not available")
 def test_workers_build_each_fmu_once_without_racing(client, worker_fmu_cache):
     """Both workers start a plain-feather run at once on an empty cache: one compiles, the other
     waits for it; neither replaces the other's file (same inode), and no partial file is left."""

@@ -9,9 +9,9 @@ import time
 import pytest
 from dask_testing import SlowFeather, without_timing
 
-from optimizer.evaluation import MeasurementPlan
-from optimizer.executor import DaskExecutor, InlineExecutor
-from optimizer.sweep import Controller, run_sweep
+from featherstar.optimizer.evaluation import MeasurementPlan
+from featherstar.optimizer.executor import DaskExecutor, InlineExecutor
+from featherstar.optimizer.sweep import Controller, run_sweep
 
 pytestmark = pytest.mark.dask
 

@@ -14,8 +14,8 @@ import pytest
 from fmpy import read_model_description
 from fmpy.fmi3 import FMU3Model, FMU3Slave
 
-from fmu_src.export import build_fmu
-from fmu_src.model import Model, Parameter, Variable
+from featherstar.fmu_src.export import build_fmu
+from featherstar.fmu_src.model import Model, Parameter, Variable
 
 def oscillator_model(name: str = "toy_oscillator") -> Model:
     """J phi'' = torque - k phi - c phi'. With c = 1e4, k = J = 1 one eigenvalue is ~ -1e4."""

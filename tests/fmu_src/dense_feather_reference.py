@@ -1,7 +1,7 @@
 """The feather's dynamics as they were formulated before the O(N) chain solve (commit 32dc597):
 every point's position an expression of (Q, θ0), the dense mass matrix from exact Jacobians and a
 symbolic LDLᵀ solve. A test reference only: `test_chain_dynamics.py` checks the recursive solve
-of `fmu_src.chain` against it. The geometry, fluid terms and internal torques below are copied
+of `featherstar.fmu_src.chain` against it. The geometry, fluid terms and internal torques below are copied
 from that commit, not imported, so that the reference does not move with the code it checks."""
 from __future__ import annotations
 
@@ -10,10 +10,10 @@ from dataclasses import dataclass
 
 import casadi as ca
 
-from fmu_src.contact import one_way_stop
-from fmu_src.feather import ADDED_MASS_CHORD, GAUSS
-from fmu_src.fluid import dnv_added_mass_coeff, oscillatory_drag_coeff, stroke_keulegan_carpenter
-from fmu_src.model import Model
+from featherstar.fmu_src.contact import one_way_stop
+from featherstar.fmu_src.feather import ADDED_MASS_CHORD, GAUSS
+from featherstar.fmu_src.fluid import dnv_added_mass_coeff, oscillatory_drag_coeff, stroke_keulegan_carpenter
+from featherstar.fmu_src.model import Model
 
 
 def dense_feather_function(model: Model) -> ca.Function:

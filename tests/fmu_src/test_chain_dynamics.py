@@ -1,11 +1,11 @@
-"""The O(N) recursive solve (fmu_src.chain) against the dense formulation it replaced
+"""The O(N) recursive solve (featherstar.fmu_src.chain) against the dense formulation it replaced
 (tests/fmu_src/dense_feather_reference.py: Jacobians, full mass matrix, LDLᵀ): the same equations, so the
 same derivatives and outputs at any state, flaps and hinges in contact with their stops included."""
 import numpy as np
 import pytest
 from dense_feather_reference import dense_feather_function
 
-from fmu_src.feather import feather_model
+from featherstar.fmu_src.feather import feather_model
 
 SAMPLES = 40
 TOLERANCE = 1e-10  # relative to the largest magnitude of each quantity over the samples

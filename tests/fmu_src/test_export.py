@@ -21,9 +21,9 @@ from fmpy.fmi1 import FMICallException
 from fmpy.fmi3 import FMU3Slave, fmi3Boolean, fmi3Float64, fmi3ValueReference
 from fmpy.validation import validate_fmu
 
-from fmu_src import cli, export
-from fmu_src.errors import BuildError
-from fmu_src.export import build_fmu
+from featherstar.fmu_src import cli, export
+from featherstar.fmu_src.errors import BuildError
+from featherstar.fmu_src.export import build_fmu
 
 TIME_VR = 4294967295
 # When the toy drain (h' = -(sqrt(h) + 0.5), h(0) = 1) empties: integral of dh / (sqrt(h) + 0.5).
@@ -296,9 +296,9 @@ def test_compiler_failure_raises_build_error_and_keeps_cache(oscillator_fmu, mak
 
 
 def test_cli_build_and_unknown_model(oscillator_fmu, make_oscillator, tmp_path, monkeypatch, capsys):
-    catalog = types.ModuleType("fmu_src.catalog")
+    catalog = types.ModuleType("featherstar.fmu_src.catalog")
     catalog.MODELS = {"toy-oscillator": make_oscillator}
-    monkeypatch.setitem(sys.modules, "fmu_src.catalog", catalog)
+    monkeypatch.setitem(sys.modules, "featherstar.fmu_src.catalog", catalog)
     parser = argparse.ArgumentParser(prog="featherstar")
     cli.register(parser.add_subparsers())
 

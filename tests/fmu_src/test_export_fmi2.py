@@ -19,9 +19,9 @@ from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
 from fmpy.validation import validate_fmu
 
-from fmu_src import cli
-from fmu_src.errors import BuildError
-from fmu_src.export import build_fmu
+from featherstar.fmu_src import cli
+from featherstar.fmu_src.errors import BuildError
+from featherstar.fmu_src.export import build_fmu
 
 
 @pytest.fixture(scope="module")
@@ -109,9 +109,9 @@ def test_unknown_fmi_version_is_refused(make_oscillator):
 
 
 def test_cli_build_fmi2(oscillator_fmu2, make_oscillator, tmp_path, monkeypatch, capsys):
-    catalog = types.ModuleType("fmu_src.catalog")
+    catalog = types.ModuleType("featherstar.fmu_src.catalog")
     catalog.MODELS = {"toy-oscillator": make_oscillator}
-    monkeypatch.setitem(sys.modules, "fmu_src.catalog", catalog)
+    monkeypatch.setitem(sys.modules, "featherstar.fmu_src.catalog", catalog)
     parser = argparse.ArgumentParser(prog="featherstar")
     cli.register(parser.add_subparsers())
     args = parser.parse_args(["build", "--fmi", "2", "--out", str(tmp_path)])

@@ -13,8 +13,8 @@ from fmpy import read_model_description
 from fmpy.fmi1 import FMICallException
 from fmpy.fmi3 import fmi3Float64
 
-from fmu_src.export import build_fmu
-from fmu_src.model import Model, Parameter, Variable
+from featherstar.fmu_src.export import build_fmu
+from featherstar.fmu_src.model import Model, Parameter, Variable
 
 DISCARD, ERROR = 2, 3
 
@@ -156,7 +156,7 @@ def test_model_exchange_never_returns_nan_with_ok(sqrt_fmu, drain_fmu, open_fmu)
 def test_robot_parameters_that_break_the_four_bar_are_refused_before_the_first_step(fmu_cache, open_fmu):
     """Each robot parameter is in range, but a 0.5 m crank cannot close the four-bar: the root
     angle is NaN. The FMU says so when initialization ends instead of stepping on with NaN."""
-    from fmu_src.robot import robot_model
+    from featherstar.fmu_src.robot import robot_model
 
     path = build_fmu(robot_model())
     vr = refs(path)

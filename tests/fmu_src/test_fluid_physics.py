@@ -8,12 +8,12 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from cosim.stroke import Stroke, root_motion, root_motion_symbolic
-from fmu_src.errors import ModelError
-from fmu_src.feather import GAUSS, feather_model
-from fmu_src.fluid import dnv_added_mass_coeff, oscillatory_drag_coeff, stroke_keulegan_carpenter
-from fmu_src.integrate import integrate
-from fmu_src.model import Model, Variable
+from featherstar.cosim.stroke import Stroke, root_motion, root_motion_symbolic
+from featherstar.fmu_src.errors import ModelError
+from featherstar.fmu_src.feather import GAUSS, feather_model
+from featherstar.fmu_src.fluid import dnv_added_mass_coeff, oscillatory_drag_coeff, stroke_keulegan_carpenter
+from featherstar.fmu_src.integrate import integrate
+from featherstar.fmu_src.model import Model, Variable
 
 OUT = {"thrust": 0, "torque": 1, "energy": 5, "drag_thrust": 6, "momentum": 7}
 

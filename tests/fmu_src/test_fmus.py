@@ -12,10 +12,10 @@ from fmpy import read_model_description
 from fmpy.fmi3 import FMU3Slave
 from fmpy.validation import validate_fmu
 
-from cosim.stroke import Stroke, root_motion
-from fmu_src.catalog import MODELS
-from fmu_src.export import build_fmu
-from fmu_src.integrate import integrate
+from featherstar.cosim.stroke import Stroke, root_motion
+from featherstar.fmu_src.catalog import MODELS
+from featherstar.fmu_src.export import build_fmu
+from featherstar.fmu_src.integrate import integrate
 
 # Constant inputs that exercise each model (feather: a held, swept-back root in a slow current).
 INPUTS = {

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from fmpy.validation import validate_fmu
 
-from fmu_src.catalog import MODELS
-from fmu_src.export import build_fmu
+from featherstar.fmu_src.catalog import MODELS
+from featherstar.fmu_src.export import build_fmu
 from test_fmus import INPUTS
 
 

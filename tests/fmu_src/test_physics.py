@@ -6,12 +6,12 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from cosim.stroke import Stroke, root_motion_symbolic
-from fmu_src.catalog import build_model
-from fmu_src.errors import ModelError
-from fmu_src.feather import feather_model
-from fmu_src.fourbar import check_linkage, rocker_angle
-from fmu_src.integrate import integrate
+from featherstar.cosim.stroke import Stroke, root_motion_symbolic
+from featherstar.fmu_src.catalog import build_model
+from featherstar.fmu_src.errors import ModelError
+from featherstar.fmu_src.feather import feather_model
+from featherstar.fmu_src.fourbar import check_linkage, rocker_angle
+from featherstar.fmu_src.integrate import integrate
 
 
 def stroke_drive(stroke: Stroke, flow_speed_m_s: float = 0.0):

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from hil.emulator import start_emulator
+from featherstar.hil.emulator import start_emulator
 
 
 @dataclass

@@ -7,10 +7,10 @@ import time
 
 import pytest
 
-from cosim.block import Block
-from hil.blocks import LoadCell, Servo
-from hil.emulator import start_emulator
-from hil.errors import DeviceFault, Fault, HILConfigError, HILError
+from featherstar.cosim.block import Block
+from featherstar.hil.blocks import LoadCell, Servo
+from featherstar.hil.emulator import start_emulator
+from featherstar.hil.errors import DeviceFault, Fault, HILConfigError, HILError
 
 pytestmark = pytest.mark.hil
 # Generous: a loaded 2-core machine can stall the emulator thread for tens of ms. Tests of

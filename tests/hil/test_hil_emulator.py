@@ -7,11 +7,11 @@ import math
 import pytest
 from pymodbus.client import ModbusTcpClient
 
-from hil.cli import main, register
-from hil.emulator import LOADCELL_UNIT, SERVO_UNIT
-from hil.plant import FlatPlatePlant, Plant
-from hil.codec import encode_value
-from hil.registers import load_servo_map
+from featherstar.hil.cli import main, register
+from featherstar.hil.emulator import LOADCELL_UNIT, SERVO_UNIT
+from featherstar.hil.plant import FlatPlatePlant, Plant
+from featherstar.hil.codec import encode_value
+from featherstar.hil.registers import load_servo_map
 
 
 def strip_thrust_N(p: FlatPlatePlant, n: int = 2000) -> float:
@@ -125,7 +125,7 @@ def test_allow_remote_binds_with_a_warning(tmp_path):
 
     err_path = tmp_path / "stderr"
     with err_path.open("w") as err:
-        proc = subprocess.Popen([sys.executable, "-m", "hil", "emulate", "--host", "0.0.0.0",
+        proc = subprocess.Popen([sys.executable, "-m", "featherstar.hil", "emulate", "--host", "0.0.0.0",
                                  "--allow-remote", "--port", "0", "--plant", "flat-plate"],
                                 stdout=subprocess.PIPE, stderr=err, text=True)
         try:
@@ -139,7 +139,7 @@ def test_allow_remote_binds_with_a_warning(tmp_path):
 
 @pytest.mark.hil
 def test_fmu_plant_reset_starts_fresh_instances_at_rest():
-    from hil.fmu_plant import FmuPlant
+    from featherstar.hil.fmu_plant import FmuPlant
 
     plant = FmuPlant("plain")
     plant.set_setpoint_rad(0.5)
@@ -156,6 +156,6 @@ def test_fmu_plant_reset_starts_fresh_instances_at_rest():
                                             ("::1", True), ("localhost", True),
                                             ("0.0.0.0", False), ("::", False)])
 def test_only_loopback_counts_as_local(host, loopback):
-    from hil.cli import is_loopback
+    from featherstar.hil.cli import is_loopback
 
     assert is_loopback(host) is loopback

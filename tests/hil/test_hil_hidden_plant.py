@@ -8,9 +8,9 @@ import sys
 import numpy as np
 import pytest
 
-from hil.emulator import spawn_emulator
-from hil.errors import HILError
-from hil.plant import FlatPlatePlant, flat_plate_plant, fmu_plant_parameters, read_plant_parameters
+from featherstar.hil.emulator import spawn_emulator
+from featherstar.hil.errors import HILError
+from featherstar.hil.plant import FlatPlatePlant, flat_plate_plant, fmu_plant_parameters, read_plant_parameters
 
 pytestmark = pytest.mark.hil
 
@@ -62,7 +62,7 @@ def test_hidden_coefficients_are_not_printed_nor_on_the_command_line():
 
 
 def test_an_out_of_range_feather_coefficient_stops_the_emulator_in_one_line():
-    done = subprocess.run([sys.executable, "-m", "hil", "emulate", "--port", "0", "--plant", "fmu",
+    done = subprocess.run([sys.executable, "-m", "featherstar.hil", "emulate", "--port", "0", "--plant", "fmu",
                            "--morphology", "plain", "--plant-set", "feather.added_mass_scale=7"],
                           capture_output=True, text=True, timeout=300)
     assert done.returncode != 0

@@ -12,7 +12,7 @@ import time
 
 import pytest
 
-from hil.emulator import LOADCELL_UNIT, SERVO_UNIT
+from featherstar.hil.emulator import LOADCELL_UNIT, SERVO_UNIT
 
 pytestmark = pytest.mark.hil
 
@@ -209,7 +209,7 @@ def test_garbage_closes_only_that_connection_and_logs_a_bounded_amount(float_emu
         except ConnectionResetError:
             pass
         raw.close()
-    records = [r for r in caplog.records if r.name.startswith("hil.")]
+    records = [r for r in caplog.records if r.name.startswith("featherstar.hil.")]
     assert 1 <= len(records) <= 21 and all(len(r.getMessage()) <= 200 for r in records)
     assert_still_serving(float_emulator.port)
 
@@ -295,9 +295,9 @@ def test_50_clients_times_100_requests_get_every_reply_right(float_emulator):
 
 
 def test_the_log_limit_counts_what_it_suppressed(caplog):
-    from hil.modbus_server import RateLimitedLog
+    from featherstar.hil.modbus_server import RateLimitedLog
 
-    caplog.set_level(logging.INFO, logger="hil.modbus_server")
+    caplog.set_level(logging.INFO, logger="featherstar.hil.modbus_server")
     limited = RateLimitedLog(burst=3, window_s=0.05, max_chars=10)
     for i in range(50):
         limited(logging.WARNING, f"garbage frame number {i}")

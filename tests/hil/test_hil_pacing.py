@@ -9,11 +9,11 @@ import time
 
 import pytest
 
-from hil.blocks import LoadCell, Servo
-from hil.emulator import spawn_emulator
-from hil.errors import DeviceFault
-from hil.pacing import Pacer, run_paced
-from hil.recorder import Recorder
+from featherstar.hil.blocks import LoadCell, Servo
+from featherstar.hil.emulator import spawn_emulator
+from featherstar.hil.errors import DeviceFault
+from featherstar.hil.pacing import Pacer, run_paced
+from featherstar.hil.recorder import Recorder
 
 # Generous: a loaded 2-core machine can stall the emulator for tens of ms.
 T = 1.0

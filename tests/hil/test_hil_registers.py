@@ -9,10 +9,10 @@ import pytest
 from hypothesis import given, strategies as st
 from pymodbus.client import ModbusTcpClient
 
-from hil.errors import HILConfigError
-from hil.codec import (decode_raw, decode_status, decode_value, encode_raw, encode_status,
+from featherstar.hil.errors import HILConfigError
+from featherstar.hil.codec import (decode_raw, decode_status, decode_value, encode_raw, encode_status,
                        encode_value)
-from hil.registers import (NumberField, Status, StatusField, ValueType, WordOrder,
+from featherstar.hil.registers import (NumberField, Status, StatusField, ValueType, WordOrder,
                            available_maps, load_loadcell_map, load_map, load_servo_map)
 
 ORDERS = list(WordOrder)

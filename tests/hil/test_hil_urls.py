@@ -5,9 +5,9 @@ import importlib.util
 
 import pytest
 
-from hil.blocks import LoadCell
-from hil.errors import HILConfigError
-from hil.link import parse_url
+from featherstar.hil.blocks import LoadCell
+from featherstar.hil.errors import HILConfigError
+from featherstar.hil.link import parse_url
 
 
 @pytest.mark.parametrize("url, expected", [

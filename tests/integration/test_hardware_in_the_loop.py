@@ -10,11 +10,11 @@ import threading
 import numpy as np
 import pytest
 
-from cosim.errors import SceneError, StepError
-from hil.hardware import parse_hardware, with_hardware
-from cosim.run import run_scene
-from cosim.scene import load_scene
-from hil.emulator import spawn_emulator
+from featherstar.cosim.errors import SceneError, StepError
+from featherstar.hil.hardware import parse_hardware, with_hardware
+from featherstar.cosim.run import run_scene
+from featherstar.cosim.scene import load_scene
+from featherstar.hil.emulator import spawn_emulator
 
 pytestmark = pytest.mark.hil
 

@@ -8,9 +8,9 @@ from pathlib import Path
 import pytest
 
 from featherstar.app import main
-from hil.hardware import split_url, with_hardware
-from cosim.scene import load_scene
-from hil.emulator import spawn_emulator
+from featherstar.hil.hardware import split_url, with_hardware
+from featherstar.cosim.scene import load_scene
+from featherstar.hil.emulator import spawn_emulator
 
 HW = ["--hardware", "servo=modbus-tcp://127.0.0.1:1?unit=2",
       "--hardware", "loadcell=modbus-tcp://127.0.0.1:1?unit=1"]

@@ -19,9 +19,9 @@ from pathlib import Path
 import pytest
 from pymodbus.client import ModbusTcpClient
 
-from hil.codec import decode_value
-from hil.emulator import SERVO_UNIT, spawn_emulator
-from hil.registers import load_servo_map
+from featherstar.hil.codec import decode_value
+from featherstar.hil.emulator import SERVO_UNIT, spawn_emulator
+from featherstar.hil.registers import load_servo_map
 
 pytestmark = pytest.mark.hil
 

@@ -1,7 +1,7 @@
 import pytest
 from optimizer_testing import FEATHER, PLAN, SHORT_ITERATIONS, SPACE
 
-from optimizer.bayes import optimize
+from featherstar.optimizer.bayes import optimize
 
 
 @pytest.fixture(scope="session")

@@ -1,9 +1,9 @@
 """Shared setup of the optimizer tests (imported by conftest and by the tests)."""
 import json
 
-from optimizer.evaluation import MeasurementPlan
-from optimizer.space import stroke_space
-from optimizer.synthetic import SyntheticFeather
+from featherstar.optimizer.evaluation import MeasurementPlan
+from featherstar.optimizer.space import stroke_space
+from featherstar.optimizer.synthetic import SyntheticFeather
 
 FEATHER = SyntheticFeather("chordwise")
 SPACE = stroke_space(1.5)

@@ -15,17 +15,17 @@ import threading
 import numpy as np
 import pytest
 
-from hil.emulator import spawn_emulator
-from optimizer.bayes import optimize
-from optimizer.bench_objective import BenchObjective, discard_reasons
-from optimizer.bench_run import BenchFault, BenchRun
-from optimizer.bench_study import run_bench_study
-from optimizer.cli import main as optimizer_main
-from optimizer.evaluation import MeasurementPlan
-from optimizer.loadcell import LoadCell
-from optimizer.objective import SceneObjective
-from optimizer.sim_prior import SimPrior
-from optimizer.space import stroke_space
+from featherstar.hil.emulator import spawn_emulator
+from featherstar.optimizer.bayes import optimize
+from featherstar.optimizer.bench_objective import BenchObjective, discard_reasons
+from featherstar.optimizer.bench_run import BenchFault, BenchRun
+from featherstar.optimizer.bench_study import run_bench_study
+from featherstar.optimizer.cli import main as optimizer_main
+from featherstar.optimizer.evaluation import MeasurementPlan
+from featherstar.optimizer.loadcell import LoadCell
+from featherstar.optimizer.objective import SceneObjective
+from featherstar.optimizer.sim_prior import SimPrior
+from featherstar.optimizer.space import stroke_space
 
 pytestmark = pytest.mark.hil
 

@@ -4,7 +4,7 @@ The emulator runs the plain feather's FMU with drag, added mass and stiffness th
 told; three recordings of one stroke (`featherstar run --hardware --out` output) are fitted, and
 the calibrated model must predict a fourth, different stroke's TR and mean thrust as the
 emulator measures them. The emulator's plant steps its servo and feather FMUs Gauss-Seidel at
-1 ms (hil.fmu_plant), which is first-order accurate: for an asymmetric stroke its mean thrust is
+1 ms (featherstar.hil.fmu_plant), which is first-order accurate: for an asymmetric stroke its mean thrust is
 several times the converged (strong) simulation's. So the prediction is made with the same
 coupling and macro step as the emulator's plant, a model of *that* bench (docs/bench-loop.md).
 """
@@ -15,16 +15,16 @@ import os
 import numpy as np
 import pytest
 
-from cosim.errors import StepError
-from hil.hardware import with_hardware
-from cosim.report import write_outputs
-from cosim.run import run_scene
-from cosim.scene import load_scene
-from hil.emulator import spawn_emulator
-from optimizer.bench_objective import discard_reasons
-from optimizer.bench_run import BenchFault, BenchRun, run_on_bench
-from optimizer.calibration import calibrate
-from optimizer.recordings import read_recording
+from featherstar.cosim.errors import StepError
+from featherstar.hil.hardware import with_hardware
+from featherstar.cosim.report import write_outputs
+from featherstar.cosim.run import run_scene
+from featherstar.cosim.scene import load_scene
+from featherstar.hil.emulator import spawn_emulator
+from featherstar.optimizer.bench_objective import discard_reasons
+from featherstar.optimizer.bench_run import BenchFault, BenchRun, run_on_bench
+from featherstar.optimizer.calibration import calibrate
+from featherstar.optimizer.recordings import read_recording
 
 pytestmark = [
     pytest.mark.hil,

@@ -8,16 +8,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from optimizer.bayes import optimize
-from optimizer.calibration import calibrate
-from optimizer.cli import main as optimizer_main
-from optimizer.errors import OptimizerError
-from optimizer.evaluation import MeasurementPlan
-from optimizer.loadcell import LoadCell
-from optimizer.recordings import read_recording
-from optimizer.sim_prior import SimPrior, study_morphology
-from optimizer.space import stroke_space
-from optimizer.synthetic import SyntheticFeather
+from featherstar.optimizer.bayes import optimize
+from featherstar.optimizer.calibration import calibrate
+from featherstar.optimizer.cli import main as optimizer_main
+from featherstar.optimizer.errors import OptimizerError
+from featherstar.optimizer.evaluation import MeasurementPlan
+from featherstar.optimizer.loadcell import LoadCell
+from featherstar.optimizer.recordings import read_recording
+from featherstar.optimizer.sim_prior import SimPrior, study_morphology
+from featherstar.optimizer.space import stroke_space
+from featherstar.optimizer.synthetic import SyntheticFeather
 
 
 def _write_run(path, *, header="time [s],servo.angle_rad [rad],loadcell_hw.thrust_N [N]", angle_scale=1.0,
@@ -124,8 +124,8 @@ def test_calibration_recovers_coefficients_from_simulated_recordings(tmp_path):
     """The fit without real time: recordings as the emulator's plant would serve them (servo and
     feather FMUs Gauss-Seidel at 1 ms, read every 4 ms, angle in 0.01°, 5 mN noise), so this runs
     on a machine too loaded for the emulator tests."""
-    from cosim.run import run_scene
-    from optimizer.recordings import Recording
+    from featherstar.cosim.run import run_scene
+    from featherstar.optimizer.recordings import Recording
 
     hidden = {"oscillatory_drag": 0.0, "drag_coeff": 1.56, "added_mass_scale": 0.85}
     result = run_scene("testbed", {"feather.morphology": "plain", "controller.period_s": 1.0, "master.t_end_s": 1.6,
@@ -146,8 +146,8 @@ def test_calibration_recovers_coefficients_from_simulated_recordings(tmp_path):
     assert calibration.r_squared > 0.95
 
     # The parameter set, as --set arguments and as a scene's feather parameters line.
-    from cosim.scene import load_scene
-    from optimizer.cli_calibrate import write_calibration
+    from featherstar.cosim.scene import load_scene
+    from featherstar.optimizer.cli_calibrate import write_calibration
 
     paths = write_calibration(calibration, tmp_path / "cal", runs=["run0", "run1", "run2"], scene="testbed",
                               overrides={"feather.morphology": "plain"})

@@ -7,7 +7,7 @@ from skopt.space import Real, Space
 from skopt.utils import cook_estimator
 from threadpoolctl import threadpool_limits
 
-from optimizer.acquisition import (
+from featherstar.optimizer.acquisition import (
     expected_improvement, expected_improvement_plus, incumbent, noise_sd, with_more_variance_between_observations,
 )
 

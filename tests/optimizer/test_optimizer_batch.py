@@ -3,9 +3,9 @@ asks, and resumable mid-batch to exactly the uninterrupted run."""
 import pytest
 from optimizer_testing import FEATHER, PLAN, SPACE, Interrupting, logged_evaluations
 
-from optimizer.bayes import StrokeOptimizer, optimize
-from optimizer.errors import OptimizerError
-from optimizer.executor import InlineExecutor, ProcessExecutor
+from featherstar.optimizer.bayes import StrokeOptimizer, optimize
+from featherstar.optimizer.errors import OptimizerError
+from featherstar.optimizer.executor import InlineExecutor, ProcessExecutor
 
 BATCH_ITERATIONS = 10
 

@@ -3,9 +3,9 @@ import math
 import numpy as np
 import pytest
 
-from optimizer.bayes import StrokeOptimizer, optimize
-from optimizer.errors import OptimizerError
-from optimizer.space import stroke_overrides, stroke_space, symmetric_stroke
+from featherstar.optimizer.bayes import StrokeOptimizer, optimize
+from featherstar.optimizer.errors import OptimizerError
+from featherstar.optimizer.space import stroke_overrides, stroke_space, symmetric_stroke
 
 from optimizer_testing import FEATHER, PLAN, SHORT_ITERATIONS, SPACE, Interrupting, logged_evaluations
 
@@ -97,7 +97,7 @@ def test_ask_tell_rejects_bad_input():
 def test_a_stroke_the_simulation_refuses_stops_the_study_naming_it(tmp_path):
     """A StepError inside an evaluation (e.g. the master's energy guard) ends the study with the
     evaluation and its point named; the evaluations before it stay in the log."""
-    from cosim.errors import StepError
+    from featherstar.cosim.errors import StepError
 
     calls = []
 

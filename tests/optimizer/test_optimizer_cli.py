@@ -3,7 +3,7 @@ import json
 
 import pytest
 
-from optimizer.cli import main, register
+from featherstar.optimizer.cli import main, register
 
 
 def test_register_adds_the_subcommands():
@@ -56,7 +56,7 @@ def test_ctrl_c_points_to_resume(tmp_path, capsys, monkeypatch):
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr("optimizer.cli.run_study", interrupted)
+    monkeypatch.setattr("featherstar.optimizer.cli.run_study", interrupted)
     assert main(["optimize", "synthetic:plain", "--out", str(tmp_path)]) == 130
     assert "--resume" in capsys.readouterr().err
 

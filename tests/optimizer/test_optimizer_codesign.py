@@ -3,9 +3,9 @@ import json
 import pytest
 from optimizer_testing import FEATHER
 
-from optimizer.codesign import codesign
-from optimizer.errors import OptimizerError
-from optimizer.evaluation import MeasurementPlan
+from featherstar.optimizer.codesign import codesign
+from featherstar.optimizer.errors import OptimizerError
+from featherstar.optimizer.evaluation import MeasurementPlan
 
 
 def test_joint_and_two_stage_spend_the_same_budget(tmp_path):

@@ -9,15 +9,15 @@ import time
 
 from optimizer_testing import FEATHER, PLAN, SHORT_ITERATIONS, SPACE, logged_evaluations
 
-from optimizer.bayes import optimize
-from optimizer.executor import InlineExecutor
-from optimizer.sweep import Controller, run_sweep
+from featherstar.optimizer.bayes import optimize
+from featherstar.optimizer.executor import InlineExecutor
+from featherstar.optimizer.sweep import Controller, run_sweep
 
 RUNNER = textwrap.dedent("""
     import sys, time
     sys.path.insert(0, sys.argv[2])
     from optimizer_testing import FEATHER, PLAN, SPACE
-    from optimizer.bayes import optimize
+    from featherstar.optimizer.bayes import optimize
 
     def slow_feather(overrides, duration_s):
         time.sleep(0.1)  # a slower experiment, so the kill lands mid-run
@@ -59,8 +59,8 @@ SWEEP_RUNNER = textwrap.dedent("""
     import sys, time
     sys.path.insert(0, sys.argv[2])
     from optimizer_testing import FEATHER
-    from optimizer.executor import ProcessExecutor
-    from optimizer.sweep import Controller, run_sweep
+    from featherstar.optimizer.executor import ProcessExecutor
+    from featherstar.optimizer.sweep import Controller, run_sweep
 
     def slow_feather(overrides, duration_s):
         time.sleep(0.05)  # a slower experiment, so the kill lands mid-sweep

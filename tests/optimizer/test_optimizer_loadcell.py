@@ -3,8 +3,8 @@ import math
 import numpy as np
 import pytest
 
-from optimizer.errors import OptimizerError
-from optimizer.loadcell import DEFAULT_NOISE_SD_N, LoadCell, measure
+from featherstar.optimizer.errors import OptimizerError
+from featherstar.optimizer.loadcell import DEFAULT_NOISE_SD_N, LoadCell, measure
 
 
 def _square_wave(period_s=1.5, positive_N=0.03, negative_N=-0.01, duration_s=15.0, rate_hz=1000.0):

@@ -3,9 +3,9 @@ import math
 import numpy as np
 import pytest
 
-from cosim.stroke import stroke_from_log_ratios
-from optimizer.errors import OptimizerError
-from optimizer.space import (
+from featherstar.cosim.stroke import stroke_from_log_ratios
+from featherstar.optimizer.errors import OptimizerError
+from featherstar.optimizer.space import (
     LOG_HOLD_MOVE, LOG_UP_DOWN, STROKE_VARIABLES, ServoLimits, Variable, stroke_space, symmetric_stroke,
 )
 
@@ -101,9 +101,9 @@ def test_extra_variables_pass_through():
 
 
 def test_public_api_is_exported():
-    import optimizer
+    from featherstar import optimizer
 
     assert sorted(optimizer.__all__) == sorted(set(optimizer.__all__))
     for name in optimizer.__all__:
         assert hasattr(optimizer, name), name
-    assert issubclass(optimizer.OptimizerError, __import__("fmu_src.errors").errors.FeatherstarError)
+    assert issubclass(optimizer.OptimizerError, __import__("featherstar.fmu_src.errors").errors.FeatherstarError)

@@ -5,9 +5,9 @@ import sys
 import pytest
 from optimizer_testing import FEATHER, FailingForWideFeathers, always_failing
 
-from optimizer.errors import OptimizerError
-from optimizer.executor import ProcessExecutor, make_executor
-from optimizer.sweep import (
+from featherstar.optimizer.errors import OptimizerError
+from featherstar.optimizer.executor import ProcessExecutor, make_executor
+from featherstar.optimizer.sweep import (
     L_ROOT_M, PAPER_CONTROLLERS, W_SPINE_M, Controller, format_table, paper_geometries, run_sweep, tabulate,
 )
 

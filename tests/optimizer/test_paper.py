@@ -12,12 +12,12 @@ import math
 
 import pytest
 
-from optimizer.cli import register
-from optimizer.objective import master_available
-from optimizer.paper import FULL, QUICK, collect, generate_report, study_specs, sweep_geometries
-from optimizer.paper_figures import draw_all
-from optimizer.paper_report import claims, write_markdown
-from optimizer.sweep import Controller
+from featherstar.optimizer.cli import register
+from featherstar.optimizer.objective import master_available
+from featherstar.optimizer.paper import FULL, QUICK, collect, generate_report, study_specs, sweep_geometries
+from featherstar.optimizer.paper_figures import draw_all
+from featherstar.optimizer.paper_report import claims, write_markdown
+from featherstar.optimizer.sweep import Controller
 
 TINY = dataclasses.replace(
     QUICK, name="test", sweep_geometries=1, sweep_controllers=(Controller(0.5, 1.0, 0.0),), sweep_settle_periods=0,
@@ -35,7 +35,7 @@ CLAIMS = ["plain_symmetric", "chordwise_symmetric", "spanwise_symmetric", "chord
 @pytest.fixture(scope="module")
 def report(tmp_path_factory):
     if not master_available():
-        pytest.skip("cosim.run_scene (the FMU master) is not available")
+        pytest.skip("featherstar.cosim.run_scene (the FMU master) is not available")
     return generate_report(tmp_path_factory.mktemp("paper"), quick=True, progress=False, resolution=TINY)
 
 

@@ -7,14 +7,14 @@ for the flapped feathers (physics notes §9).
 """
 import pytest
 
-from optimizer.evaluation import MeasurementPlan
-from optimizer.objective import SceneObjective, master_available
-from optimizer.space import stroke_space
-from optimizer.study import run_study
+from featherstar.optimizer.evaluation import MeasurementPlan
+from featherstar.optimizer.objective import SceneObjective, master_available
+from featherstar.optimizer.space import stroke_space
+from featherstar.optimizer.study import run_study
 
 pytestmark = [
     pytest.mark.stress,
-    pytest.mark.skipif(not master_available(), reason="cosim.run_scene (the FMU master) is not available yet"),
+    pytest.mark.skipif(not master_available(), reason="featherstar.cosim.run_scene (the FMU master) is not available yet"),
 ]
 
 SCENE = "testbed"  # the single-feather test bed: servo + feather + load cell

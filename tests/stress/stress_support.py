@@ -63,7 +63,7 @@ def tolerances(morphology: str) -> Tolerances:
 
 def run_case(scene: str, overrides: Mapping[str, Any]):
     """run_scene with the signals the checks need recorded."""
-    from cosim.run import run_scene
+    from featherstar.cosim.run import run_scene
 
     return run_scene(scene, dict(overrides), outputs=signals(scene))
 
@@ -167,7 +167,7 @@ CLEAR_ERROR = re.compile(r"block '[^']+' at t=[-+0-9.e]+ s.*(likely cause|return
 
 def assert_clear_error(exc: BaseException, block: str | None = None) -> None:
     """A clear error: a FeatherstarError whose one-line message names the block, the time and the cause."""
-    from fmu_src.errors import FeatherstarError
+    from featherstar.fmu_src.errors import FeatherstarError
 
     assert isinstance(exc, FeatherstarError), f"not a featherstar error: {type(exc).__name__}: {exc}"
     text = str(exc)

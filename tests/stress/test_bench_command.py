@@ -9,7 +9,7 @@ import textwrap
 import pytest
 
 from featherstar.app import main
-from cosim.dashboard import BenchError, find_bench_dir, run_dashboard
+from featherstar.cosim.dashboard import BenchError, find_bench_dir, run_dashboard
 
 
 def test_bench_is_a_featherstar_command(capsys):

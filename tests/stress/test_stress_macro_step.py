@@ -18,8 +18,8 @@ import functools
 import numpy as np
 import pytest
 
-from cosim.errors import SceneError
-from fmu_src.errors import FeatherstarError
+from featherstar.cosim.errors import SceneError
+from featherstar.fmu_src.errors import FeatherstarError
 from stress_support import ENERGY, THRUST, assert_clear_error, metrics_of, physical_problems, run_case
 
 pytestmark = pytest.mark.stress

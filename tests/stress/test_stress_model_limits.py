@@ -14,7 +14,7 @@ import math
 
 import pytest
 
-from fmu_src.errors import FeatherstarError
+from featherstar.fmu_src.errors import FeatherstarError
 from stress_support import assert_clear_error, physical_problems, plain_stroke_overrides, run_case
 
 pytestmark = pytest.mark.stress

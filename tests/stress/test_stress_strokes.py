@@ -12,8 +12,8 @@ import math
 import numpy as np
 import pytest
 
-from cosim.stroke import MIN_JERK_PEAK_RATE_FACTOR
-from fmu_src.servo import servo_model
+from featherstar.cosim.stroke import MIN_JERK_PEAK_RATE_FACTOR
+from featherstar.fmu_src.servo import servo_model
 from stress_support import FLAP, assert_physical, plain_stroke_overrides, run_case
 
 pytestmark = pytest.mark.stress

@@ -1,0 +1,137 @@
+"""`featherstar emulate`: the bench emulator on the command line.
+
+`featherstar.app:main` calls `register(subparsers)` and dispatches `args.func(args)`; `python -m featherstar.hil`
+offers the same commands without the rest of featherstar.
+"""
+from __future__ import annotations
+
+import argparse
+import asyncio
+import ipaddress
+import logging
+import math
+import sys
+
+from .emulator import IDLE_TIMEOUT_S, LOADCELL_UNIT, SERVO_UNIT, Emulator, serve
+from .errors import HILError
+from .plant import flat_plate_plant, fmu_plant_parameters, read_plant_parameters
+from .registers import available_maps, load_loadcell_map, load_servo_map
+
+_DESCRIPTION = f"""\
+Serve a Modbus TCP emulator of the feather test bench: a load-cell transmitter (unit
+{LOADCELL_UNIT}) and a servo controller (unit {SERVO_UNIT}) behind register maps, with a plant
+(the servo and feather FMUs, or an analytic flat plate) advanced in real time at every request.
+
+Point the hardware blocks at it:
+  modbus-tcp://HOST:PORT?unit={LOADCELL_UNIT}   (LoadCell)
+  modbus-tcp://HOST:PORT?unit={SERVO_UNIT}   (Servo)
+
+Shipped register maps: {', '.join(available_maps())}; a path to a TOML map works too.
+Stop with Ctrl-C."""
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the `emulate` command to a featherstar-style subparser set."""
+    p = subparsers.add_parser(
+        "emulate", help="serve a Modbus emulator of the test bench (load cell + servo)",
+        description=_DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--host", default="127.0.0.1",
+                   help="interface to bind (default: %(default)s). Modbus has no "
+                        "authentication: anything but loopback needs --allow-remote")
+    p.add_argument("--allow-remote", action="store_true",
+                   help="allow binding a non-loopback interface (anyone who reaches it can move "
+                        "the emulated servo); a warning is printed")
+    p.add_argument("--idle-timeout-s", type=float, default=IDLE_TIMEOUT_S, metavar="S",
+                   help="close a connection silent for this long, e.g. a client that vanished "
+                        "without closing it (default: %(default)s)")
+    p.add_argument("--port", type=int, default=5020,
+                   help="TCP port; 0 picks a free one (default: %(default)s). The bound port is "
+                        "printed on the first line of output")
+    p.add_argument("--loadcell-map", default="loadcell-float32-abcd", metavar="NAME",
+                   help="load-cell register map, shipped name or TOML path "
+                        "(default: %(default)s)")
+    p.add_argument("--servo-map", default="servo-default", metavar="NAME",
+                   help="servo register map, shipped name or TOML path (default: %(default)s)")
+    p.add_argument("--noise-N", type=float, default=0.01, metavar="SD",
+                   help="standard deviation of the Gaussian load-cell noise, N "
+                        "(default: %(default)s)")
+    p.add_argument("--seed", type=int, default=None, metavar="S",
+                   help="seed of the noise generator (default: random)")
+    p.add_argument("--plant", choices=("fmu", "flat-plate"), default="fmu",
+                   help="what moves behind the registers: the project's servo and feather FMUs "
+                        "(default; the testbed scene's physics) or an analytic rigid flat plate")
+    p.add_argument("--morphology", choices=("plain", "chordwise", "spanwise"), default="chordwise",
+                   help="feather of the fmu plant (default: %(default)s)")
+    p.add_argument("--plant-parameters", default=None, metavar="FILE",
+                   help="JSON object of plant coefficients that differ from the defaults, e.g. "
+                        '{"feather.drag_coeff": 1.6, "feather.oscillatory_drag": 0} (fmu plant: feather.NAME, '
+                        "servo.NAME; flat plate: c_n, c_a, ...). They are hidden: not printed, not served over "
+                        "Modbus, so a client must measure them (featherstar calibrate)")
+    p.add_argument("--plant-set", action="append", default=[], metavar="NAME=VALUE",
+                   help="one plant coefficient (repeatable; wins over --plant-parameters; visible in the "
+                        "process list, unlike the file)")
+    p.set_defaults(func=emulate)
+
+
+def emulate(args: argparse.Namespace) -> int:
+    """Run the emulator until interrupted; returns the exit status."""
+    if not 0 <= args.port <= 65535:
+        raise HILError(f"--port {args.port}: valid values are 0..65535")
+    if not args.noise_N >= 0:
+        raise HILError(f"--noise-N {args.noise_N}: must be >= 0")
+    if not (math.isfinite(args.idle_timeout_s) and args.idle_timeout_s > 0):
+        raise HILError(f"--idle-timeout-s {args.idle_timeout_s}: must be a positive number")
+    if not is_loopback(args.host):
+        if not args.allow_remote:
+            raise HILError(f"--host {args.host}: not a loopback address; Modbus has no "
+                           "authentication, so binding it needs --allow-remote")
+        print(f"featherstar emulate: WARNING: serving on {args.host}: anyone who can reach it "
+              "can read the load cell and move the emulated servo", file=sys.stderr)
+    # Maps first: a typo must not wait for the FMUs to build.
+    loadcell_map, servo_map = load_loadcell_map(args.loadcell_map), load_servo_map(args.servo_map)
+    logging.basicConfig(level=logging.WARNING, format="%(asctime)s %(name)s: %(message)s")
+    hidden = read_plant_parameters(args.plant_parameters, args.plant_set)
+    if args.plant == "fmu":
+        from .fmu_plant import FmuPlant  # builds FMUs: only when asked for
+
+        feather, servo = fmu_plant_parameters(hidden)
+        plant = FmuPlant(args.morphology, feather_parameters=feather, servo_parameters=servo)
+    else:
+        plant = flat_plate_plant(hidden)
+    emulator = Emulator(loadcell_map, servo_map, plant, noise_N=args.noise_N, seed=args.seed)
+
+    def ready(port: int) -> None:
+        print(f"featherstar emulate: listening on modbus-tcp://{args.host}:{port} "
+              f"(load cell unit {LOADCELL_UNIT}: {emulator.loadcell_map.name}, "
+              f"servo unit {SERVO_UNIT}: {emulator.servo_map.name})"
+              + (f"; {len(hidden)} hidden plant coefficient(s) differ from the defaults" if hidden else ""),
+              flush=True)
+
+    try:
+        asyncio.run(serve(emulator, args.host, args.port, asyncio.Event(), ready,
+                          idle_timeout_s=args.idle_timeout_s))
+    except KeyboardInterrupt:
+        pass
+    return 0
+
+
+def is_loopback(host: str) -> bool:
+    """Whether binding `host` keeps the emulator on this machine (a name may resolve anywhere)."""
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False   # a host name: it may resolve to anything
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m featherstar.hil",
+                                     description="featherstar hardware-in-the-loop tools")
+    subparsers = parser.add_subparsers(dest="command", required=True)
+    register(subparsers)
+    args = parser.parse_args(argv)
+    try:
+        return args.func(args)
+    except HILError as exc:
+        parser.exit(2, f"error: {exc}\n")

@@ -1,0 +1,390 @@
+"""A Modbus TCP bench emulator: a load-cell transmitter and a servo controller on one server.
+
+The load cell answers as unit 1 and the servo as unit 2 (an RS-485 line behind a TCP gateway),
+each behind its register map. Every request first advances the plant to the current wall-clock
+time, so the emulator behaves like the bench whatever the client's request rate. The servo
+follows setpoints only once enabled (if its map has [enable]); the load cell reports the
+plant's thrust plus a preload (the feather's weight in water, removed by tare) plus Gaussian
+noise, as kg-force or whatever unit its map says, with the stable and overload bits.
+
+Use `start_emulator()` (background thread, in-process, supports fault injection) or
+`spawn_emulator()` (child process, can be killed like a real device) in tests and benches, and
+`featherstar emulate` on the command line.
+"""
+from __future__ import annotations
+
+import abc
+import asyncio
+import json
+import logging
+import math
+import random
+import re
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+from typing import Callable, Mapping
+
+from .codec import decode_value, encode_status, encode_value
+from .errors import HILError
+from .modbus_server import (DEVICE_FAILURE, ILLEGAL_ADDRESS, ILLEGAL_VALUE, ModbusTcpServer,
+                              RateLimitedLog, spaces_for)
+from .plant import FlatPlatePlant, Plant
+from .registers import (Function, LoadCellMap, NumberField, ServoMap, Status, StatusField,
+                           load_loadcell_map, load_servo_map)
+
+LOADCELL_UNIT = 1
+SERVO_UNIT = 2
+LOADCELL_CAPACITY_N = 3.0 * 9.80665     # the bench's 0-3 kg cell
+REGISTER_DECIMALS = 3                   # what the emulator puts in a decimals register
+FAULTS = ("freeze", "silent", "exception", "overload", "error")
+SERVO_RANGE_RAD = (-math.pi / 2, math.pi / 2)   # setpoint clamp when the map gives no range
+IDLE_TIMEOUT_S = 30.0                   # close connections silent for this long
+_STABLE_RATE_RAD_S = 0.05              # below this the feather (and the cell) is at rest
+_SILENT_MAX_S = 30.0                    # a silent device answers eventually, so stop() ends
+_READ_FC = {Function.HOLDING: 3, Function.INPUT: 4}
+log = logging.getLogger(__name__)
+
+
+def _put(registers: dict[int, int], address: int, values: list[int]) -> None:
+    registers.update(zip(range(address, address + len(values)), values))
+
+
+class Emulator:
+    """The register-level behaviour of the bench; serve it with `serve()`."""
+
+    def __init__(self, loadcell_map: LoadCellMap, servo_map: ServoMap, plant: Plant | None = None,
+                 *, noise_N: float = 0.01, seed: int | None = None, preload_N: float = -0.3,
+                 capacity_N: float = LOADCELL_CAPACITY_N, max_advance_s: float = 0.5) -> None:
+        self.loadcell_map, self.servo_map = loadcell_map, servo_map
+        self.plant: Plant = plant if plant is not None else FlatPlatePlant()
+        self.noise_N, self.preload_N, self.capacity_N = noise_N, preload_N, capacity_N
+        # An idle emulator does not integrate hours of plant time on the next request.
+        self.max_advance_s = max_advance_s
+        self.rng = random.Random(seed)
+        self.lock = threading.Lock()
+        self.tare_N = 0.0
+        self.servo_enabled = servo_map.enable is None
+        self.servo_setpoint_rad: float | None = None
+        self.requests = 0
+        self.plant_resets = 0
+        self.log = RateLimitedLog()
+        self._faults: dict[str, str] = {}
+        self._t_mono: float | None = None
+        self._rate_rad_s = 0.0        # measured across requests: the Plant protocol has no rate
+        self._registers = {LOADCELL_UNIT: {"holding": {}, "input": {}},
+                           SERVO_UNIT: {"holding": {}, "input": {}}}
+        sp = servo_map.setpoint
+        lo, hi = SERVO_RANGE_RAD
+        self.setpoint_range_rad = (lo if sp.min is None else sp.min * sp.to_si,
+                                   hi if sp.max is None else sp.max * sp.to_si)
+
+    def inject(self, device: str, fault: str | None) -> None:
+        """Make 'loadcell' or 'servo' misbehave: one of FAULTS, or None to heal it."""
+        if device not in ("loadcell", "servo") or (fault is not None and fault not in FAULTS):
+            raise ValueError(f"inject({device!r}, {fault!r}): device is 'loadcell' or 'servo', "
+                             f"fault one of {FAULTS} or None")
+        with self.lock:
+            if fault is None:
+                self._faults.pop(device, None)
+            else:
+                self._faults[device] = fault
+
+    def units(self) -> dict[int, tuple]:
+        """Unit id -> (register spaces, handler), for featherstar.hil.modbus_server."""
+        lc, sv = self.loadcell_map, self.servo_map
+        lc_read = lc.value.spans() + ([(lc.status.address, 1)] if lc.status else [])
+        lc_write = [(lc.tare.address, 1)] if lc.tare else []
+        sv_read = (sv.position.spans() if sv.position else []) \
+            + ([(sv.status.address, 1)] if sv.status else [])
+        sv_write = [(sv.setpoint.address, 2)] + ([(sv.enable.address, 1)] if sv.enable else [])
+        return {LOADCELL_UNIT: (spaces_for(lc.read_function.value, lc_read, lc_write),
+                                self._loadcell_action),
+                SERVO_UNIT: (spaces_for(sv.read_function.value, sv_read, sv_write),
+                             self._servo_action)}
+
+    def force_N(self) -> float:
+        """What the cell feels, before tare and noise."""
+        return self.plant.thrust_N + self.preload_N
+
+    def _advance(self) -> bool:
+        """Advance the plant to now; False (after resetting it) if its step failed."""
+        now = time.monotonic()
+        self.requests += 1
+        if self._t_mono is not None and now > self._t_mono:
+            angle_rad, dt_s = self.plant.angle_rad, min(now - self._t_mono, self.max_advance_s)
+            try:
+                self.plant.advance(dt_s)
+                if not (math.isfinite(self.plant.angle_rad) and math.isfinite(self.plant.thrust_N)):
+                    raise HILError(f"plant state not finite (angle {self.plant.angle_rad})")
+            except Exception as exc:   # one bad step must not poison the device for good
+                self._reset_plant(exc)
+                self._t_mono = now
+                return False
+            self._rate_rad_s = (self.plant.angle_rad - angle_rad) / dt_s
+        self._t_mono = now
+        return True
+
+    def _reset_plant(self, exc: Exception) -> None:
+        self.plant_resets += 1
+        self.log(logging.ERROR, f"plant step failed ({type(exc).__name__}: {exc}); plant reset "
+                                f"to rest, servo disabled until a new setpoint "
+                                f"(reset #{self.plant_resets})")
+        reset = getattr(self.plant, "reset", None)
+        if reset is not None:
+            reset()
+        self.servo_setpoint_rad = None
+        self._rate_rad_s = 0.0
+
+    async def _misbehave(self, device: str) -> int | None:
+        if self._faults.get(device) == "silent":
+            t_end = time.monotonic() + _SILENT_MAX_S
+            while self._faults.get(device) == "silent" and time.monotonic() < t_end:
+                await asyncio.sleep(0.005)
+        if self._faults.get(device) == "exception":
+            return DEVICE_FAILURE
+        return None
+
+    def _status(self, field: StatusField, device: str, overload: bool) -> list[int]:
+        status = Status(stable=abs(self._rate_rad_s) < _STABLE_RATE_RAD_S,
+                        overload=overload or self._faults.get(device) == "overload",
+                        error=self._faults.get(device) == "error")
+        return [encode_status(field, status)]
+
+    @staticmethod
+    def _put_number(registers: dict[int, int], field: NumberField, x: float) -> None:
+        decimals = None
+        if field.decimals_address is not None:
+            decimals = REGISTER_DECIMALS
+            _put(registers, field.decimals_address, [decimals])
+        _put(registers, field.address, encode_value(field, x, decimals))
+
+    @staticmethod
+    def _read(registers: dict[int, int], address: int, count: int) -> list[int]:
+        return [registers.get(a, 0) for a in range(address, address + count)]
+
+    async def _loadcell_action(self, function_code: int, space: str, address: int, count: int,
+                               values: list[int] | None) -> list[int] | int | None:
+        if (exc := await self._misbehave("loadcell")) is not None:
+            return exc
+        m = self.loadcell_map
+        registers = self._registers[LOADCELL_UNIT][space]
+        with self.lock:
+            if not self._advance():
+                return DEVICE_FAILURE
+            if values is not None:
+                if m.tare and address <= m.tare.address < address + count \
+                        and values[m.tare.address - address] == m.tare.value:
+                    self.tare_N = self.force_N()
+                _put(registers, address, values)
+                return None
+            if function_code == _READ_FC[m.read_function] and \
+                    self._faults.get("loadcell") != "freeze":
+                force_N = self.force_N()
+                reading_N = force_N - self.tare_N + self.rng.gauss(0.0, self.noise_N)
+                self._put_number(registers, m.value, reading_N / m.value.to_si)
+                if m.status is not None:
+                    _put(registers, m.status.address,
+                         self._status(m.status, "loadcell", abs(force_N) > self.capacity_N))
+            return self._read(registers, address, count)
+
+    async def _servo_action(self, function_code: int, space: str, address: int, count: int,
+                            values: list[int] | None) -> list[int] | int | None:
+        if (exc := await self._misbehave("servo")) is not None:
+            return exc
+        m = self.servo_map
+        registers = self._registers[SERVO_UNIT][space]
+        with self.lock:
+            if not self._advance():
+                return DEVICE_FAILURE
+            if values is not None:
+                return self._servo_write(registers, address, values)
+            if function_code == _READ_FC[m.read_function] and \
+                    self._faults.get("servo") != "freeze":
+                if m.position is not None:
+                    self._put_number(registers, m.position,
+                                     self.plant.angle_rad / m.position.to_si)
+                if m.status is not None:
+                    _put(registers, m.status.address, self._status(m.status, "servo", False))
+            return self._read(registers, address, count)
+
+    def _servo_write(self, registers: dict[int, int], address: int,
+                     values: list[int]) -> int | None:
+        m = self.servo_map
+        end = address + len(values)
+        sp = m.setpoint
+        setpoint_rad = None
+        if address < sp.address + 2 and sp.address < end:
+            if not (address <= sp.address and sp.address + 2 <= end):
+                return ILLEGAL_ADDRESS      # half a 32-bit setpoint
+            offset = sp.address - address
+            value = decode_value(sp, values[offset:offset + 2])
+            if not math.isfinite(value):
+                return ILLEGAL_VALUE        # NaN / inf: refused, nothing is changed
+            lo, hi = self.setpoint_range_rad
+            # A real controller saturates at its travel; it does not follow 9000 degrees.
+            setpoint_rad = min(max(value * sp.to_si, lo), hi)
+            values = list(values)
+            values[offset:offset + 2] = encode_value(sp, setpoint_rad / sp.to_si)
+        _put(registers, address, values)
+        if setpoint_rad is not None:
+            self.servo_setpoint_rad = setpoint_rad
+        if m.enable is not None and address <= m.enable.address < end:
+            self.servo_enabled = values[m.enable.address - address] == m.enable.value
+        if self.servo_enabled and self.servo_setpoint_rad is not None:
+            self.plant.set_setpoint_rad(self.servo_setpoint_rad)
+        return None
+
+
+async def serve(emulator: Emulator, host: str, port: int, stop: asyncio.Event,
+                on_ready: Callable[[int], None], *,
+                idle_timeout_s: float = IDLE_TIMEOUT_S) -> None:
+    """Serve until `stop` is set; `on_ready(bound_port)` once listening."""
+    server = ModbusTcpServer(emulator.units(), host, port, idle_timeout_s=idle_timeout_s)
+    bound = await server.start()
+    try:
+        on_ready(bound)
+        await stop.wait()
+    finally:
+        await server.close()
+
+
+class _Handle(abc.ABC):
+    host: str
+    port: int
+
+    @property
+    def loadcell_url(self) -> str:
+        return f"modbus-tcp://{self.host}:{self.port}?unit={LOADCELL_UNIT}"
+
+    @property
+    def servo_url(self) -> str:
+        return f"modbus-tcp://{self.host}:{self.port}?unit={SERVO_UNIT}"
+
+    def __enter__(self) -> _Handle:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+    @abc.abstractmethod
+    def stop(self) -> None: ...
+
+
+class EmulatorThread(_Handle):
+    """An emulator served from a background thread of this process."""
+
+    def __init__(self, emulator: Emulator, host: str, port: int, *,
+                 idle_timeout_s: float = IDLE_TIMEOUT_S) -> None:
+        self.emulator, self.host, self.port = emulator, host, port
+        self.idle_timeout_s = idle_timeout_s
+        self._ready = threading.Event()
+        self._error: BaseException | None = None
+        self._loop = asyncio.new_event_loop()
+        self._stop = asyncio.Event()
+        self._thread = threading.Thread(target=self._run, name="hil-emulator", daemon=True)
+        self._thread.start()
+        if not self._ready.wait(10.0) or self._error is not None:
+            raise HILError(f"emulator did not start on {host}:{port}: {self._error}")
+
+    def _run(self) -> None:
+        def ready(port: int) -> None:
+            self.port = port
+            self._ready.set()
+        try:
+            self._loop.run_until_complete(serve(self.emulator, self.host, self.port, self._stop,
+                                                ready, idle_timeout_s=self.idle_timeout_s))
+        except BaseException as exc:   # reported to the starting thread
+            self._error = exc
+            self._ready.set()
+        finally:
+            self._loop.close()
+
+    def stop(self) -> None:
+        """Close the server and every client connection (like a device losing power)."""
+        if self._thread.is_alive():
+            self.emulator.inject("loadcell", None)
+            self.emulator.inject("servo", None)
+            self._loop.call_soon_threadsafe(self._stop.set)
+            self._thread.join(10.0)
+
+
+def start_emulator(host: str = "127.0.0.1", port: int = 0,
+                   loadcell_map: str | Path = "loadcell-float32-abcd",
+                   servo_map: str | Path = "servo-default", *, noise_N: float = 0.01,
+                   seed: int | None = None, plant: Plant | None = None,
+                   idle_timeout_s: float = IDLE_TIMEOUT_S) -> EmulatorThread:
+    """Serve a new emulator in a background thread; returns once it listens (port 0 = any)."""
+    emulator = Emulator(load_loadcell_map(loadcell_map), load_servo_map(servo_map), plant,
+                        noise_N=noise_N, seed=seed)
+    return EmulatorThread(emulator, host, port, idle_timeout_s=idle_timeout_s)
+
+
+class EmulatorProcess(_Handle):
+    """An emulator in a child process (`python -m featherstar.hil emulate`): kill() it like a device."""
+
+    _LISTENING = re.compile(r"listening on modbus-tcp://(\S+):(\d+)")
+
+    def __init__(self, args: list[str], start_timeout_s: float = 20.0,
+                 plant_parameters: Mapping[str, float] | None = None) -> None:
+        # stderr to a file: an unread pipe would fill and stall the child.
+        self._stderr = tempfile.TemporaryFile("w+")
+        # Hidden coefficients go through a file, not the command line (which `ps` shows).
+        self._parameters_file = None
+        if plant_parameters:
+            self._parameters_file = tempfile.NamedTemporaryFile("w", suffix=".json", delete=False)
+            json.dump(dict(plant_parameters), self._parameters_file)
+            self._parameters_file.close()
+            args = [*args, "--plant-parameters", self._parameters_file.name]
+        self.proc = subprocess.Popen([sys.executable, "-m", "featherstar.hil", "emulate", *args],
+                                     stdout=subprocess.PIPE, stderr=self._stderr, text=True)
+        lines: list[str] = []
+        reader = threading.Thread(target=lambda: lines.append(self.proc.stdout.readline()),
+                                  daemon=True)
+        reader.start()
+        reader.join(start_timeout_s)
+        match = self._LISTENING.search(lines[0]) if lines else None
+        if match is None:
+            self.kill()
+            self._stderr.seek(0)
+            errors = self._stderr.read()
+            self.stop()
+            raise HILError(f"emulator process did not start: {lines} {errors}")
+        self.host, self.port = match.group(1), int(match.group(2))
+
+    def stop(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.terminate()
+            self.proc.wait(10.0)
+        self.proc.stdout.close()
+        self._stderr.close()
+        if self._parameters_file is not None:
+            Path(self._parameters_file.name).unlink(missing_ok=True)
+
+    def kill(self) -> None:
+        """SIGKILL: the server vanishes mid-conversation, as a device losing power does."""
+        if self.proc.poll() is None:
+            self.proc.kill()
+            self.proc.wait(10.0)
+
+
+def spawn_emulator(host: str = "127.0.0.1", port: int = 0,
+                   loadcell_map: str | Path = "loadcell-float32-abcd",
+                   servo_map: str | Path = "servo-default", *, noise_N: float = 0.01,
+                   seed: int | None = None, plant: str = "flat-plate",
+                   morphology: str = "chordwise", start_timeout_s: float = 20.0,
+                   plant_parameters: Mapping[str, float] | None = None) -> EmulatorProcess:
+    """Run the emulator in a child process; returns once it listens (port 0 = any).
+
+    `plant` is "flat-plate" (analytic, starts at once) or "fmu" (the servo and feather FMUs;
+    the first start compiles them, so give it a longer `start_timeout_s`). `plant_parameters`
+    are hidden coefficients of the plant (see `featherstar emulate --plant-parameters`)."""
+    args = ["--host", host, "--port", str(port), "--loadcell-map", str(loadcell_map),
+            "--servo-map", str(servo_map), "--noise-N", str(noise_N), "--plant", plant,
+            "--morphology", morphology]
+    if seed is not None:
+        args += ["--seed", str(seed)]
+    return EmulatorProcess(args, start_timeout_s, plant_parameters)

@@ -1,0 +1,345 @@
+"""Register maps as data: TOML files parsed into frozen dataclasses.
+
+Load-cell transmitters and servo controllers differ in function code, address base, number
+format, word order and status bits, so a device's register map is a TOML file (`hil/maps/`)
+parsed into frozen dataclasses here; `featherstar.hil.codec` encodes and decodes registers for both the
+client blocks and the emulator.
+
+Map file layout (see the shipped maps for complete examples):
+
+    [device]   kind = "loadcell" | "servo", function = "holding" | "input" (how the readable
+               fields are read: function code 3 or 4), address_base = 0 | 1 (how the addresses
+               below are printed in the manual), description = "..." (optional)
+    [value]    loadcell, required: a number field (below), unit kg | g | N
+    [setpoint] servo, required: number field written with function code 16, unit rad | deg
+    [position] servo, optional read-back: number field, unit rad | deg
+    [status]   optional: address, stable_bit / overload_bit / error_bit (0-15, each optional)
+    [tare]     loadcell, optional: address, value (written with function code 6)
+    [enable]   servo, optional: address, value (written on every new connection)
+
+Number field: address, type = "float32" | "int32", word_order = "ABCD" | "CDAB" | "BADC" |
+"DCBA" (default ABCD), unit, scale (default 1), offset (default 0; engineering value =
+raw * scale + offset), min / max (engineering range, optional), and for int32 exactly one of
+decimals (fixed) or decimals_address (a register holding the number of decimals).
+"""
+from __future__ import annotations
+
+import enum
+import math
+import tomllib
+from dataclasses import dataclass
+from importlib import resources
+from importlib.resources.abc import Traversable
+from pathlib import Path
+from typing import Any, Sequence
+
+from .errors import HILConfigError
+
+
+class Function(str, enum.Enum):
+    HOLDING = "holding"   # read with function code 3
+    INPUT = "input"       # read with function code 4
+
+
+class ValueType(str, enum.Enum):
+    FLOAT32 = "float32"
+    INT32 = "int32"
+
+
+class WordOrder(str, enum.Enum):
+    """Where bytes A (most significant) .. D land in the two registers."""
+
+    ABCD = "ABCD"
+    CDAB = "CDAB"
+    BADC = "BADC"
+    DCBA = "DCBA"
+
+
+_UNIT_SCALE = {"loadcell": {"kg": 9.80665, "g": 9.80665e-3, "N": 1.0},
+               "servo": {"rad": 1.0, "deg": math.pi / 180.0}}
+MAX_DECIMALS = 9
+
+
+@dataclass(frozen=True)
+class NumberField:
+    """A 32-bit number in two registers. `address` is the 0-based protocol address."""
+
+    address: int
+    type: ValueType
+    word_order: WordOrder
+    unit: str
+    to_si: float                 # engineering unit -> N or rad
+    scale: float = 1.0
+    offset: float = 0.0
+    decimals: int | None = None
+    decimals_address: int | None = None
+    min: float | None = None
+    max: float | None = None
+
+    def spans(self) -> list[tuple[int, int]]:
+        """(address, register count) of the value and of its decimals register, if any."""
+        spans = [(self.address, 2)]
+        if self.decimals_address is not None:
+            spans.append((self.decimals_address, 1))
+        return spans
+
+
+@dataclass(frozen=True)
+class StatusField:
+    address: int
+    stable_bit: int | None = None
+    overload_bit: int | None = None
+    error_bit: int | None = None
+
+
+@dataclass(frozen=True)
+class Status:
+    stable: bool = True
+    overload: bool = False
+    error: bool = False
+
+
+@dataclass(frozen=True)
+class CommandField:
+    address: int
+    value: int
+
+
+@dataclass(frozen=True)
+class LoadCellMap:
+    name: str
+    source: str
+    description: str
+    read_function: Function
+    value: NumberField
+    status: StatusField | None
+    tare: CommandField | None
+
+
+@dataclass(frozen=True)
+class ServoMap:
+    name: str
+    source: str
+    description: str
+    read_function: Function
+    setpoint: NumberField
+    position: NumberField | None
+    status: StatusField | None
+    enable: CommandField | None
+
+
+_SECTIONS = {"loadcell": {"device", "value", "status", "tare"},
+             "servo": {"device", "setpoint", "position", "status", "enable"}}
+_NUMBER_KEYS = {"address", "type", "word_order", "unit", "scale", "offset", "decimals",
+                "decimals_address", "min", "max"}
+
+
+class _Reader:
+    """Typed access to one map file with errors naming the file, the key and the valid values."""
+
+    def __init__(self, source: str) -> None:
+        self.source = source
+
+    def fail(self, where: str, message: str) -> HILConfigError:
+        return HILConfigError(f"register map {self.source}: {where}: {message}")
+
+    def table(self, doc: dict[str, Any], name: str, required: bool) -> dict[str, Any] | None:
+        if name not in doc:
+            if required:
+                raise self.fail(f"[{name}]", "missing section")
+            return None
+        if not isinstance(doc[name], dict):
+            raise self.fail(f"[{name}]", "must be a table")
+        return doc[name]
+
+    def check_keys(self, section: str, table: dict[str, Any], valid: set[str]) -> None:
+        for key in table:
+            if key not in valid:
+                raise self.fail(f"[{section}] {key}",
+                                f"unknown key; valid keys: {', '.join(sorted(valid))}")
+
+    def choice(self, section: str, table: dict[str, Any], key: str, valid: Sequence[Any],
+               default: Any = None) -> Any:
+        if key not in table:
+            if default is None:
+                raise self.fail(f"[{section}] {key}",
+                                f"missing; valid values: {', '.join(map(str, valid))}")
+            return default
+        value = table[key]
+        # Compare types too: TOML `true` == 1 and `1.0` == 1 in Python, neither is a valid base.
+        if not any(value == v and type(value) is type(v) for v in valid):
+            raise self.fail(f"[{section}] {key} = {value!r}",
+                            f"not valid; valid values: {', '.join(map(str, valid))}")
+        return value
+
+    def integer(self, section: str, table: dict[str, Any], key: str, lo: int, hi: int,
+                required: bool = False) -> int | None:
+        if key not in table:
+            if required:
+                raise self.fail(f"[{section}] {key}", f"missing; an integer in {lo}..{hi}")
+            return None
+        value = table[key]
+        if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
+            raise self.fail(f"[{section}] {key} = {value!r}", f"must be an integer in {lo}..{hi}")
+        return value
+
+    def number(self, section: str, table: dict[str, Any], key: str,
+               default: float | None) -> float | None:
+        if key not in table:
+            return default
+        value = table[key]
+        if isinstance(value, bool) or not isinstance(value, (int, float)) \
+                or not math.isfinite(value):
+            raise self.fail(f"[{section}] {key} = {value!r}", "must be a finite number")
+        return float(value)
+
+
+def _address(r: _Reader, section: str, table: dict[str, Any], key: str, base: int,
+             required: bool = True) -> int | None:
+    printed = r.integer(section, table, key, base, 65535 + base, required)
+    return None if printed is None else printed - base
+
+
+def _number_field(r: _Reader, section: str, table: dict[str, Any], kind: str,
+                  base: int) -> NumberField:
+    r.check_keys(section, table, _NUMBER_KEYS)
+    value_type = ValueType(r.choice(section, table, "type", [t.value for t in ValueType]))
+    order = WordOrder(r.choice(section, table, "word_order", [o.value for o in WordOrder], "ABCD"))
+    unit = r.choice(section, table, "unit", list(_UNIT_SCALE[kind]))
+    scale = r.number(section, table, "scale", 1.0)
+    if scale == 0.0:
+        raise r.fail(f"[{section}] scale = 0", "must be non-zero")
+    decimals = r.integer(section, table, "decimals", 0, MAX_DECIMALS)
+    decimals_address = _address(r, section, table, "decimals_address", base, required=False)
+    if value_type is ValueType.FLOAT32 and (decimals is not None or decimals_address is not None):
+        raise r.fail(f"[{section}]", "decimals / decimals_address apply to type = 'int32' only")
+    if value_type is ValueType.INT32 and (decimals is None) == (decimals_address is None):
+        raise r.fail(f"[{section}]", "type = 'int32' needs exactly one of decimals (fixed) "
+                                     "or decimals_address (register)")
+    lo, hi = r.number(section, table, "min", None), r.number(section, table, "max", None)
+    if lo is not None and hi is not None and lo >= hi:
+        raise r.fail(f"[{section}] min = {lo}, max = {hi}", "min must be below max")
+    return NumberField(address=_address(r, section, table, "address", base), type=value_type,
+                       word_order=order, unit=unit, to_si=_UNIT_SCALE[kind][unit], scale=scale,
+                       offset=r.number(section, table, "offset", 0.0), decimals=decimals,
+                       decimals_address=decimals_address, min=lo, max=hi)
+
+
+def _status_field(r: _Reader, table: dict[str, Any], base: int) -> StatusField:
+    r.check_keys("status", table, {"address", "stable_bit", "overload_bit", "error_bit"})
+    bits = {k: r.integer("status", table, k, 0, 15)
+            for k in ("stable_bit", "overload_bit", "error_bit")}
+    used = [b for b in bits.values() if b is not None]
+    if len(used) != len(set(used)):
+        raise r.fail("[status]", f"two meanings share one bit: {bits}")
+    return StatusField(address=_address(r, "status", table, "address", base), **bits)
+
+
+def _command_field(r: _Reader, section: str, table: dict[str, Any], base: int) -> CommandField:
+    r.check_keys(section, table, {"address", "value"})
+    return CommandField(address=_address(r, section, table, "address", base),
+                        value=r.integer(section, table, "value", 0, 65535, required=True))
+
+
+def _check_overlaps(r: _Reader, spaces: dict[str, list[tuple[str, int, int]]]) -> None:
+    for space, fields in spaces.items():
+        fields.sort(key=lambda f: f[1])
+        for (name_a, start_a, n_a), (name_b, start_b, _) in zip(fields, fields[1:]):
+            if start_b < start_a + n_a:
+                raise r.fail(f"{name_a} and {name_b}",
+                             f"overlap in the {space} registers (protocol address {start_b})")
+
+
+def _layout(read_function: Function, readable: dict[str, Any],
+            writable: dict[str, Any]) -> dict[str, list[tuple[str, int, int]]]:
+    """(name, protocol address, register count) per register space, for the overlap check."""
+    spaces: dict[str, list[tuple[str, int, int]]] = {"holding": [], "input": []}
+    for group, space in ((readable, read_function.value), (writable, "holding")):
+        for name, f in group.items():
+            if isinstance(f, NumberField):
+                spaces[space].append((f"[{name}]", f.address, 2))
+                if f.decimals_address is not None:
+                    spaces[read_function.value].append(
+                        (f"[{name}] decimals_address", f.decimals_address, 1))
+            elif f is not None:
+                spaces[space].append((f"[{name}]", f.address, 1))
+    return spaces
+
+
+def parse_map(doc: dict[str, Any], name: str, source: str) -> LoadCellMap | ServoMap:
+    """Validate a parsed TOML document; HILConfigError names source, key and valid values."""
+    r = _Reader(source)
+    device = r.table(doc, "device", required=True)
+    r.check_keys("device", device, {"kind", "function", "address_base", "description"})
+    kind = r.choice("device", device, "kind", list(_SECTIONS))
+    r.check_keys("top level", doc, _SECTIONS[kind])
+    function = Function(r.choice("device", device, "function", [f.value for f in Function]))
+    base = r.choice("device", device, "address_base", [0, 1])
+    description = str(device.get("description", ""))
+    status = r.table(doc, "status", required=False)
+    status_field = None if status is None else _status_field(r, status, base)
+    if kind == "loadcell":
+        value = _number_field(r, "value", r.table(doc, "value", True), kind, base)
+        tare = r.table(doc, "tare", required=False)
+        tare_field = None if tare is None else _command_field(r, "tare", tare, base)
+        _check_overlaps(r, _layout(function, {"value": value, "status": status_field},
+                                   {"tare": tare_field}))
+        return LoadCellMap(name, source, description, function, value, status_field, tare_field)
+    setpoint = _number_field(r, "setpoint", r.table(doc, "setpoint", True), kind, base)
+    if setpoint.decimals_address is not None:
+        # A write-only field cannot follow a decimals register without an extra read per step.
+        raise r.fail("[setpoint] decimals_address", "not supported; use fixed decimals")
+    position = r.table(doc, "position", required=False)
+    position_field = None if position is None else _number_field(r, "position", position, kind,
+                                                                 base)
+    enable = r.table(doc, "enable", required=False)
+    enable_field = None if enable is None else _command_field(r, "enable", enable, base)
+    _check_overlaps(r, _layout(function, {"position": position_field, "status": status_field},
+                               {"setpoint": setpoint, "enable": enable_field}))
+    return ServoMap(name, source, description, function, setpoint, position_field, status_field,
+                    enable_field)
+
+
+def _maps_dir() -> Traversable:
+    return resources.files(__package__).joinpath("maps")
+
+
+def available_maps() -> list[str]:
+    """Names of the maps shipped in hil/maps/."""
+    return sorted(p.name.removesuffix(".toml") for p in _maps_dir().iterdir()
+                  if p.name.endswith(".toml"))
+
+
+def load_map(name_or_path: str | Path) -> LoadCellMap | ServoMap:
+    """A shipped map by name (`loadcell-float32-abcd`) or a TOML file by path."""
+    text_name = str(name_or_path)
+    if text_name in available_maps():
+        resource = _maps_dir() / f"{text_name}.toml"
+        source, text = f"hil/maps/{text_name}.toml", resource.read_text(encoding="utf-8")
+    else:
+        path = Path(name_or_path)
+        if not path.is_file():
+            raise HILConfigError(f"register map {text_name!r}: no such file and not a shipped "
+                                 f"map; shipped maps: {', '.join(available_maps())}")
+        source, text = str(path), path.read_text(encoding="utf-8")
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise HILConfigError(f"register map {source}: not valid TOML: {exc}") from None
+    return parse_map(doc, Path(text_name).stem, source)
+
+
+def load_loadcell_map(name_or_path: str | Path) -> LoadCellMap:
+    m = load_map(name_or_path)
+    if not isinstance(m, LoadCellMap):
+        raise HILConfigError(f"register map {m.source}: [device] kind = 'servo', "
+                             "a load cell needs kind = 'loadcell'")
+    return m
+
+
+def load_servo_map(name_or_path: str | Path) -> ServoMap:
+    m = load_map(name_or_path)
+    if not isinstance(m, ServoMap):
+        raise HILConfigError(f"register map {m.source}: [device] kind = 'loadcell', "
+                             "a servo needs kind = 'servo'")
+    return m
