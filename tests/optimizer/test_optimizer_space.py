@@ -106,4 +106,4 @@ def test_public_api_is_exported():
     assert sorted(optimizer.__all__) == sorted(set(optimizer.__all__))
     for name in optimizer.__all__:
         assert hasattr(optimizer, name), name
-    assert issubclass(optimizer.OptimizerError, __import__("featherstar.fmu_src.errors").errors.FeatherstarError)
+    assert issubclass(optimizer.OptimizerError, __import__("featherstar.fmu_src.errors").fmu_src.errors.FeatherstarError)
