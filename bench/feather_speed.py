@@ -11,8 +11,10 @@ In one run, on one machine (compare the ratios: a shared machine is noisy):
    and peak RSS).
 3. The chordwise kinematic scene (6 periods of 1.5 s, CVODES Adams, rtol 1e-6): the FMU master
    on today's FMU, the same equations composed monolithically and compiled
-   (featherstar.cosim.monolithic), and the FMU master on the FMU built from commit 32dc597, in rotating order,
-   `--repeats` times each, median wall times. TR of each; the old model's chaos band is the range
+   (featherstar.cosim.monolithic), today's master on the FMU built from commit 32dc597 (the model's
+   share of the change), and commit 32dc597's own master on that FMU (the scene as it ran before
+   the change: Python right-hand side, dense model; in a child process, timed inside it), in
+   rotating order, `--repeats` times each, median wall times. TR of each; the old model's chaos band is the range
    of its TR at rtol 1e-6, 1e-7 and 1e-8 (the flapped feather is chaotic: TRs of accurate runs
    scatter, and a TR inside the band is as good as the old model's own).
 4. 6-period run time of the kinematic scene through the master against N (chordwise and plain).
@@ -20,7 +22,7 @@ In one run, on one machine (compare the ratios: a shared machine is noisy):
    suspect relaxed at a time (flap-stop stiffness, smoothing and damping, bending stiffness,
    joint damping, BDF): probes of what limits the step, not changes to the model.
 
-Writes bench/results/feather_speed.json and feather_speed.png.
+Writes docs/results/feather_speed.json and feather_speed.png.
 
     python bench/feather_speed.py [--quick] [--repeats 3] [--out DIR]
     (full: ~15 min on a quiet 2-core machine; --quick: N = 5, 10 only, one repeat)
@@ -56,7 +58,7 @@ from featherstar.fmu_src.feather import feather_model  # noqa: E402
 
 RESULTS = ROOT / "docs" / "results"
 OLD_COMMIT = "32dc597"
-SCENE = ROOT / "cosim" / "scenes" / "kinematic.toml"
+SCENE = ROOT / "featherstar" / "cosim" / "scenes" / "kinematic.toml"
 MORPHOLOGIES = ("plain", "chordwise", "spanwise")
 INPUT_SAMPLE = [0.3, 1.0, 5.0, 0.0]  # a root mid-stroke: angle, rate, acceleration, no flow
 
@@ -68,9 +70,9 @@ def log(message: str) -> None:
 # ----------------------------------------------------------------------------- the old code
 
 def export_old_tree(target: Path) -> Path:
-    """fmu_src of commit OLD_COMMIT (and what it imports) under `target`."""
-    archive = subprocess.run(["git", "-C", str(ROOT), "archive", OLD_COMMIT, "fmu_src"], check=True,
-                             capture_output=True).stdout
+    """The packages of commit OLD_COMMIT (top-level fmu_src, cosim, hil, optimizer then) under `target`."""
+    archive = subprocess.run(["git", "-C", str(ROOT), "archive", OLD_COMMIT, "fmu_src", "cosim", "hil", "optimizer"],
+                             check=True, capture_output=True).stdout
     target.mkdir(parents=True, exist_ok=True)
     subprocess.run(["tar", "-x", "-C", str(target)], input=archive, check=True)
     return target
@@ -87,7 +89,7 @@ def in_old_tree(old: Path, code: str, cache: Path) -> str:
 
 def old_function(old: Path, morphology: str, n_units: int, cache: Path) -> ca.Function:
     path = cache / f"old_{morphology}_{n_units}.casadi"
-    in_old_tree(old, "from featherstar.fmu_src.feather import feather_model\n"
+    in_old_tree(old, "from fmu_src.feather import feather_model\n"
                      f"open({str(path)!r}, 'w').write(feather_model({morphology!r}, {n_units}).function().serialize())",
                 cache)
     return ca.Function.deserialize(path.read_text())
@@ -129,8 +131,8 @@ def rhs_costs(sizes: Sequence[int], old: Path, cache: Path, old_sizes: Sequence[
 _BUILD_ONE = """
 import sys, time
 from pathlib import Path
-from featherstar.fmu_src.feather import feather_model
-from featherstar.fmu_src.export import build_fmu
+from {package}.feather import feather_model
+from {package}.export import build_fmu
 started = time.perf_counter()
 path = build_fmu(feather_model({morphology!r}, {n_units}), Path({out!r}), force=True)
 print(time.perf_counter() - started)
@@ -140,7 +142,8 @@ print(path)
 
 def build_feather(morphology: str, n_units: int, out: Path, cache: Path, tree: Path = ROOT) -> dict[str, Any]:
     """Build one feather FMU in a child process under /usr/bin/time -v: wall s, peak RSS."""
-    code = _BUILD_ONE.format(morphology=morphology, n_units=n_units, out=str(out))
+    package = "featherstar.fmu_src" if tree == ROOT else "fmu_src"   # the old tree predates the package move
+    code = _BUILD_ONE.format(package=package, morphology=morphology, n_units=n_units, out=str(out))
     env = dict(os.environ, PYTHONPATH=str(tree), FEATHERSTAR_CACHE=str(cache))
     result = subprocess.run(["/usr/bin/time", "-v", sys.executable, "-c", code], cwd=tree, env=env,
                             capture_output=True, text=True)
@@ -187,19 +190,56 @@ def timed_run(label: str, run) -> dict[str, Any]:
             "steps": stats.get("steps"), "rhs_evals": stats.get("rhs_evals")}
 
 
-def head_to_head(new_fmu: Path, old_fmu: Path, repeats: int) -> dict[str, Any]:
+_OLD_MASTER_RUN = """
+import json, time, tomllib
+from cosim.run import run_scene
+from cosim.scene import scene_from_dict
+data = tomllib.loads(open({scene!r}).read())
+data["blocks"]["feather"] = {{"kind": "fmu", "fmu": {fmu!r}, "parameters": {{"width_ratio": 7.5}}}}
+scene = scene_from_dict(data, name="kinematic-old", source={scene!r})
+run_scene(scene)   # untimed: first touch of the FMU
+started = time.perf_counter()
+result = run_scene(scene)
+wall = time.perf_counter() - started
+stats = result.summary.get("stats", {{}})
+print(json.dumps({{"wall_s": wall, "thrust_ratio": result.summary["thrust_ratio"],
+                  "mean_thrust_N": result.summary.get("mean_thrust_N"), "steps": stats.get("steps"),
+                  "rhs_evals": stats.get("rhs_evals")}}))
+"""
+
+
+def old_master_run(old: Path, old_fmu: Path, cache: Path) -> dict[str, Any]:
+    """The kinematic scene as it ran before this change: commit OLD_COMMIT's master (Python
+    right-hand side) on its dense-formulation FMU, in a child process with the old tree first on
+    the path; the wall time of run_scene, measured inside the child."""
+    code = _OLD_MASTER_RUN.format(scene=str(old / "cosim" / "scenes" / "kinematic.toml"), fmu=str(old_fmu))
+    row = json.loads(in_old_tree(old, code, cache).splitlines()[-1])
+    return {"label": f"old master + dense FMU ({OLD_COMMIT})", **row}
+
+
+class _Timed:
+    """A contender that times itself (the old master runs in a child process)."""
+
+    def __init__(self, run) -> None:
+        self.run = run
+
+
+def head_to_head(new_fmu: Path, old_fmu: Path, repeats: int, old: Path, cache: Path) -> dict[str, Any]:
     runs = {
         "master (chain FMU)": lambda: run_scene(scene_with_fmu(new_fmu)),
         "monolithic compiled (chain)": lambda: run_monolithic("kinematic", rtol=1e-6, atol=1e-8, method="adams",
                                                               compiled=True),
         "master (dense FMU, 32dc597)": lambda: run_scene(scene_with_fmu(old_fmu)),
+        f"old master + dense FMU ({OLD_COMMIT})": _Timed(lambda: old_master_run(old, old_fmu, cache)),
     }
     run_monolithic("kinematic", rtol=1e-6, atol=1e-8, method="adams", compiled=True)  # compile once, untimed
     samples: dict[str, list[dict[str, Any]]] = {label: [] for label in runs}
     labels = list(runs)
     for r in range(repeats):
-        for label in labels[r % 3:] + labels[:r % 3]:  # rotate the order: drift hits all alike
-            samples[label].append(timed_run(label, runs[label]))
+        shift = r % len(labels)
+        for label in labels[shift:] + labels[:shift]:  # rotate the order: drift hits all alike
+            run = runs[label]
+            samples[label].append(run.run() if isinstance(run, _Timed) else timed_run(label, run))
             last = samples[label][-1]
             log(f"  {label:30s} {last['wall_s']:6.2f} s  TR {last['thrust_ratio']:.3f}  steps {last['steps']}")
     summary = {label: {"median_wall_s": statistics.median(s["wall_s"] for s in rows),
@@ -209,10 +249,14 @@ def head_to_head(new_fmu: Path, old_fmu: Path, repeats: int) -> dict[str, Any]:
     band = [timed_run(f"dense rtol {rtol:g}", lambda: run_scene(scene_with_fmu(old_fmu, rtol)))
             for rtol in (1e-6, 1e-7, 1e-8)]
     trs = [b["thrust_ratio"] for b in band]
-    new, mono, old = (summary[label]["median_wall_s"] for label in labels)
+    new, mono, old_fmu_new_master, old_everything = (summary[label]["median_wall_s"] for label in labels)
     new_tr = summary[labels[0]]["thrust_ratio"]
     return {"runs": summary, "old_chaos_band": {"runs": band, "thrust_ratio_min": min(trs), "thrust_ratio_max": max(trs)},
-            "master_over_monolithic": new / mono, "master_over_old_master": new / old,
+            "master_over_monolithic": new / mono,
+            # the issue's ratio: today's master and model against both as they were at OLD_COMMIT
+            "master_over_old_master": new / old_everything,
+            # the model's share alone: the old FMU through today's master
+            "master_over_old_fmu_on_new_master": new / old_fmu_new_master,
             "new_tr_in_old_band": min(trs) <= new_tr <= max(trs)}
 
 
@@ -326,7 +370,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         log(f"  dense (32dc597) chordwise N=10: {old_build['build_s']:.1f} s, peak RSS {old_build['peak_rss_MB']:.0f} MB")
 
         log("3. chordwise kinematic scene, 6 periods, rtol 1e-6")
-        result["head_to_head"] = head_to_head(fmus[("chordwise", 10)], Path(old_build["fmu"]), repeats)
+        result["head_to_head"] = head_to_head(fmus[("chordwise", 10)], Path(old_build["fmu"]), repeats, old,
+                                              work / "old-cache")
         log("4. run time against N")
         result["run_time_vs_n"] = run_time_vs_n(sizes, fmus)
     log("5. what sets the step size (chordwise N = 10, kinematic scene)")
@@ -336,8 +381,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     json_path.write_text(json.dumps(result, indent=2))
     plot(result, args.out / "feather_speed.png")
     h = result["head_to_head"]
-    log(f"master/monolithic {h['master_over_monolithic']:.2f}, master/old master {h['master_over_old_master']:.2f}, "
-        f"TR in the old band: {h['new_tr_in_old_band']}; wrote {json_path}")
+    log(f"master/monolithic {h['master_over_monolithic']:.2f}, master/(old master + old FMU) "
+        f"{h['master_over_old_master']:.2f}, master/(old FMU on today's master) "
+        f"{h['master_over_old_fmu_on_new_master']:.2f}, TR in the old band: {h['new_tr_in_old_band']}; wrote {json_path}")
     return 0
 
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import ctypes
 from ctypes import CFUNCTYPE, POINTER, byref, c_char_p, c_double, c_int, c_int64, c_long, c_void_p
-from typing import Callable
+from typing import Callable, Protocol
 
 from fmpy.sundials import libraries as _libs
 
@@ -81,6 +81,10 @@ CVodeFree = _fn(_cv, "CVodeFree", None, POINTER(c_void_p))
 SUNNonlinSol_FixedPoint = _fn(_cv, "SUNNonlinSol_FixedPoint", c_void_p, c_void_p, c_int, c_void_p)
 SUNNonlinSolFree_FixedPoint = _fn(_cv, "SUNNonlinSolFree_FixedPoint", c_int, c_void_p)
 CVodeSetNonlinearSolver = _fn(_cv, "CVodeSetNonlinearSolver", c_int, c_void_p, c_void_p)
+CVodeSetUserData = _fn(_cv, "CVodeSetUserData", c_int, c_void_p, c_void_p)
+
+#: Address of N_VGetArrayPointer_Serial, for right-hand sides written in C.
+N_VGET_ARRAY_POINTER_ADDRESS = ctypes.cast(N_VGetArrayPointer, c_void_p).value
 
 RETURN_CODES = {
     -1: "too much work (mxstep internal steps before reaching the output time)",
@@ -99,6 +103,9 @@ RETURN_CODES = {
 }
 
 
+RHS_FAILURES = (-8, -9, -10, -11)
+
+
 class CVodeError(RuntimeError):
     def __init__(self, flag: int, t: float, detail: str = ""):
         self.flag = flag
@@ -107,14 +114,24 @@ class CVodeError(RuntimeError):
         super().__init__(f"{msg}{': ' + detail if detail else ''}")
 
 
+class NativeRhs(Protocol):
+    """A right-hand side written in C: `address` of a CVRhsFn, its `user_data`, and `failure()`,
+    the exception behind its last failure (None if none)."""
+
+    address: int
+    user_data: int
+
+    def failure(self) -> BaseException | None: ...
+
+
 class CVodeIntegrator:
     """CVODE on y' = f(t, y) with f(t, y_address, ydot_address) -> int (0 ok, >0 recoverable,
-    <0 fatal). Root function g(t, y_address, gout_address) optional."""
+    <0 fatal), or a NativeRhs. Root function g(t, y_address, gout_address) optional."""
 
     def __init__(
         self,
         n: int,
-        rhs: Callable[[float, int, int], int],
+        rhs: Callable[[float, int, int], int] | NativeRhs,
         t0: float,
         y0,
         *,
@@ -129,6 +146,7 @@ class CVodeIntegrator:
         roots: Callable[[float, int, int], int] | None = None,
     ):
         self.n = n
+        self._native = None if callable(rhs) else rhs
         self._rhs_py = rhs
         self.last_error = ""
         self._ctx = c_void_p()
@@ -147,8 +165,13 @@ class CVodeIntegrator:
             self.y[i] = v
         lmm = {"bdf": CV_BDF, "adams": CV_ADAMS}[method]
         self._mem = CVodeCreate(lmm, self._ctx)
-        self._rhs_cb = _RHS(self._rhs)
-        self._check(CVodeInit(self._mem, self._rhs_cb, t0, self._y), t0)
+        if self._native is not None:
+            self._rhs_cb = _RHS(self._native.address)
+            self._check(CVodeInit(self._mem, self._rhs_cb, t0, self._y), t0)
+            self._check(CVodeSetUserData(self._mem, self._native.user_data), t0)
+        else:
+            self._rhs_cb = _RHS(self._rhs)
+            self._check(CVodeInit(self._mem, self._rhs_cb, t0, self._y), t0)
         self._check(CVodeSStolerances(self._mem, rtol, atol), t0)
         self._NLS = None
         if nonlinear == "fixedpoint":  # functional iteration: no Jacobian (non-stiff problems)
@@ -201,6 +224,8 @@ class CVodeIntegrator:
         if flag < 0:
             exc = self.callback_exception
             self.callback_exception = None
+            if exc is None and self._native is not None and flag in RHS_FAILURES:
+                exc = self._native.failure()
             if exc is not None:
                 raise exc
             raise CVodeError(flag, t, self.last_error)

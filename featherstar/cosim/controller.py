@@ -24,12 +24,12 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Mapping
+from typing import Any, Mapping
 
 from ..fmu_src.errors import ModelError
 
 from .block import Port
-from .stroke import Stroke, root_motion, stroke_from_log_ratios
+from .stroke import Stroke, root_motion, root_motion_function, stroke_from_log_ratios
 
 TIME_KEYS = ("t_up_s", "t_hold_up_s", "t_down_s", "t_hold_down_s")
 RATIO_KEYS = ("log10_up_down", "log10_hold_up_down", "log10_hold_move")
@@ -105,6 +105,12 @@ class StrokeController:
     def outputs_at(self, t_s: float) -> tuple[float, float, float]:
         """Output values at t_s in the order of `outputs` (the master's fast path: no dicts)."""
         return root_motion(self.stroke, t_s)
+
+    def time_function(self) -> tuple[Any, list[float]]:
+        """The outputs as a CasADi function of (t_s, stroke parameters) and this stroke's
+        parameters: the strong coupling's compiled right-hand side evaluates it in C."""
+        s = self.stroke
+        return root_motion_function(), [s.t_up_s, s.t_hold_up_s, s.t_down_s, s.t_hold_down_s, s.amplitude_rad]
 
     # Block protocol
     def start(self, t0_s: float) -> None:

@@ -29,7 +29,7 @@ from .block import Port
 from .errors import StepError
 from .fmu_info import FmuInfo, read_fmu_info
 from .fmu_values import TypedAccess, TypedPorts
-from .units import FastPath, Unit
+from .units import FastPath, NativeCalls, Unit
 
 STATUS = ["ok", "warning", "discard", "error", "fatal", "pending"]
 
@@ -37,9 +37,12 @@ STATUS = ["ok", "warning", "discard", "error", "fatal", "pending"]
 _P = c_void_p  # every array argument is passed as a raw address
 
 
+def _address(dll: Any, name: str) -> int:
+    return ctypes.cast(getattr(dll, name), c_void_p).value
+
+
 def _proto(dll: Any, name: str, *argtypes: Any) -> Callable[..., int]:
-    address = ctypes.cast(getattr(dll, name), c_void_p).value
-    return CFUNCTYPE(c_int, *argtypes)(address)
+    return CFUNCTYPE(c_int, *argtypes)(_address(dll, name))
 
 
 class FmuUnit(Unit):
@@ -81,6 +84,9 @@ class FmuUnit(Unit):
         return StepError(self.name, t, message, function=function,
                          cause=cause or "the FMU rejected the call (invalid inputs or parameters, or the "
                          "model left its valid range)")
+
+    def status_error(self, function: str, t: float, status: int) -> StepError:
+        return self._fail(function, t, status)
 
     def fmu_said(self) -> str:
         """The FMU's own recent log lines (warnings and errors first), for error messages."""
@@ -335,6 +341,24 @@ class FmuUnit(Unit):
             if get_dx(inst, address, n) > 1:
                 self.get_derivatives(address)
         return FastPath(fast_set_time, fast_set_states, fast_get_derivatives)
+
+    def native_calls(self) -> NativeCalls | None:
+        if self.mode != "me" or self.fmu is None:
+            return None
+        dll, pre = self.fmu.dll, "fmi3" if self.fmi3 else "fmi2"
+        held = set(self._discrete_in)
+        inst = self._inst
+        return NativeCalls(
+            instance=inst.value if isinstance(inst, c_void_p) else int(inst), fmi3=self.fmi3,
+            set_time=_address(dll, f"{pre}SetTime"),
+            set_states=_address(dll, f"{pre}SetContinuousStates"),
+            get_derivatives=_address(dll, "fmi3GetContinuousStateDerivatives" if self.fmi3 else "fmi2GetDerivatives"),
+            set_float64=_address(dll, "fmi3SetFloat64" if self.fmi3 else "fmi2SetReal"),
+            get_float64=_address(dll, "fmi3GetFloat64" if self.fmi3 else "fmi2GetReal"),
+            value_refs_in=tuple(self._vr_in[i] for i in range(len(self.input_names))),
+            value_refs_out=tuple(self._vr_out[i] for i in range(len(self.output_names))),
+            inputs=frozenset(i for i, pv in enumerate(self.port_in) if pv.fast and i not in held),
+            outputs=frozenset(i for i, pv in enumerate(self.port_out) if pv.fast))
 
     def state_names(self) -> list[str]:
         return list(self.info.state_names)

@@ -21,6 +21,7 @@ import casadi as ca
 import numpy as np
 
 from .errors import SceneError, StepError
+from .native import casadi_library
 from .graph import plan as make_plan
 from .scene import PortRef, Scene, load_scene
 
@@ -167,31 +168,6 @@ def run_monolithic(
 
 def _compiled(fode: ca.Function, fout: ca.Function) -> tuple[ca.Function, ca.Function]:
     """C code for the ODE and output functions, compiled once and cached by their hash."""
-    import hashlib
-    import os
-    import shutil
-    import subprocess
-    import tempfile
-    from pathlib import Path
-
-    digest = hashlib.sha256((fode.serialize() + fout.serialize()).encode()).hexdigest()[:16]
-    cache = Path(os.environ.get("FEATHERSTAR_CACHE", Path.home() / ".cache" / "featherstar")) / "monolithic"
-    lib = cache / f"mono_{digest}.so"
-    if not lib.exists():
-        cache.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryDirectory() as tmp:
-            cg = ca.CodeGenerator(f"mono_{digest}.c", {"with_header": False})
-            cg.add(fode)
-            cg.add(fout)
-            cwd = os.getcwd()
-            os.chdir(tmp)
-            try:
-                cg.generate()
-            finally:
-                os.chdir(cwd)
-            out = Path(tmp) / "lib.so"
-            subprocess.run(["gcc", "-O1", "-shared", "-fPIC", str(Path(tmp) / f"mono_{digest}.c"), "-o", str(out),
-                            "-lm"], check=True)
-            shutil.move(str(out), str(lib))
+    lib = casadi_library([fode, fout], flags=("-O1",))
     opts = {"enable_fd": True}
-    return ca.external("ode", str(lib), opts), ca.external("signals", str(lib), opts)
+    return ca.external(fode.name(), str(lib), opts), ca.external(fout.name(), str(lib), opts)

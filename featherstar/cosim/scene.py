@@ -85,6 +85,8 @@ class MasterSpec:
                        the sampling or coupling error itself.
     passive_energy_factor  stop when a passive block (a feather) gains more than this multiple of
                        the work its ports put in (featherstar.cosim.guards); 0 = no check.
+    compiled_rhs       strong coupling: run the right-hand side as compiled C calls
+                       (featherstar.cosim.compiled_rhs; needs gcc); false: the Python path.
     """
 
     coupling: str = "strong"
@@ -108,6 +110,7 @@ class MasterSpec:
     realtime: bool = False
     check_steps: bool = True
     passive_energy_factor: float = 2.0
+    compiled_rhs: bool = True
 
     def check(self) -> list[str]:
         problems = []

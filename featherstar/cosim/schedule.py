@@ -3,6 +3,7 @@ algebraic loops solved by Newton iteration on their inputs (shared by both coupl
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Callable, Sequence
 
 import numpy as np
@@ -91,10 +92,30 @@ class LoopSolver:
         self.solves += 1
 
 
+@dataclass(frozen=True)
+class Step:
+    """One op of a schedule as data, with its Python form `run`: set inputs `indices` of `unit`
+    from the outputs in `sources` (kind "set"), get outputs `indices` of `unit` ("get"), or solve
+    an algebraic loop ("loop", unit None). The data lets featherstar.cosim.compiled_rhs run the
+    step in C."""
+
+    kind: str
+    unit: Unit | None
+    indices: tuple[int, ...]
+    sources: tuple[tuple[Unit, int], ...]
+    run: Callable[[], None]
+
+
 def topo_schedule(system: System, context: Context, units: Sequence[Unit], out_nodes: set[tuple[str, int]],
                   skip_static: bool = False) -> list[Callable[[], None]]:
-    """Ops (closures) that set every input of `units` and evaluate the outputs in `out_nodes`
-    (plus the outputs those inputs need) in dependency order, loops solved by LoopSolver.
+    """The Python ops of `schedule_steps` (same arguments)."""
+    return [step.run for step in schedule_steps(system, context, units, out_nodes, skip_static)]
+
+
+def schedule_steps(system: System, context: Context, units: Sequence[Unit], out_nodes: set[tuple[str, int]],
+                   skip_static: bool = False) -> list[Step]:
+    """Steps that set every input of `units` and evaluate the outputs in `out_nodes` (plus the
+    outputs those inputs need) in dependency order, loops solved by LoopSolver.
     skip_static: leave out constant blocks and the inputs they drive (set once at the start;
     input values persist in every unit)."""
     src_of: dict[tuple[str, int], tuple[str, int]] = {}
@@ -159,7 +180,7 @@ def topo_schedule(system: System, context: Context, units: Sequence[Unit], out_n
             indeg[w] -= 1
             if indeg[w] == 0:
                 ready.append(w)
-    ops: list[Callable[[], None]] = []
+    ops: list[Step] = []
     pending: list[tuple[str, str, int]] = []
 
     def flush() -> None:
@@ -169,9 +190,10 @@ def topo_schedule(system: System, context: Context, units: Sequence[Unit], out_n
         idx = [n[2] for n in pending]
         u = system.units[b]
         if kind == "in":
-            ops.append(setter_op(system, u, idx, src_of))
+            sources = tuple((system.units[src_of[(b, i)][0]], src_of[(b, i)][1]) for i in idx)
+            ops.append(Step("set", u, tuple(idx), sources, setter_op(system, u, idx, src_of)))
         else:
-            ops.append(u.output_getter(idx))
+            ops.append(Step("get", u, tuple(idx), (), u.output_getter(idx)))
         pending.clear()
 
     for ci in order:
@@ -184,7 +206,7 @@ def topo_schedule(system: System, context: Context, units: Sequence[Unit], out_n
             pending.append(n)
             continue
         flush()
-        ops.append(loop_op(system, context, comp, src_of, edges))
+        ops.append(Step("loop", None, (), (), loop_op(system, context, comp, src_of, edges)))
     flush()
     return ops
 
@@ -198,11 +220,13 @@ def setter_op(system: System, u: Unit, idx: list[int], src_of: dict) -> Callable
     raw_push = u.input_setter(idx)
     inbuf = u.inbuf
 
+    sources = [(i, system.units[src_of[(u.name, i)][0]], src_of[(u.name, i)][1]) for i in idx]
+
     def push() -> None:
         try:
             raw_push()
         except StepError as exc:
-            raise _non_finite_origin(system, u, idx, src_of) or exc from None
+            raise non_finite_origin(u, sources, u.t) or exc from None
 
     if len(gathers) == 1:
         (i0, src0, k0), = gathers
@@ -219,15 +243,14 @@ def setter_op(system: System, u: Unit, idx: list[int], src_of: dict) -> Callable
     return op
 
 
-def _non_finite_origin(system: System, u: Unit, idx: list[int], src_of: dict) -> StepError | None:
+def non_finite_origin(u: Unit, sources: Sequence[tuple[int, Unit, int]], t: float) -> StepError | None:
     """When a block refuses a NaN/inf input (featherstar's own FMUs do), the block that produced
-    it is where the run failed, not the one that would not compute with it."""
-    for i in idx:
+    it is where the run failed, not the one that would not compute with it. `sources`: (input
+    index of u, driving unit, its output index)."""
+    for i, src, k in sources:
         value = u.inbuf[i]
         if not math.isfinite(value):
-            sb, k = src_of[(u.name, i)]
-            src = system.units[sb]
-            return StepError(sb, u.t, f"output {src.output_names[k]} = {value}",
+            return StepError(src.name, t, f"output {src.output_names[k]} = {value}",
                              cause=f"the block produced NaN/inf ({u.name}.{u.input_names[i]} refused it): its "
                              "model blew up, divided by zero, or got invalid parameters or inputs")
     return None

@@ -150,3 +150,13 @@ def root_motion_symbolic(
     rate = ca.if_else(moving, sign * amplitude_rad * ds / duration, 0)
     accel = ca.if_else(moving, sign * amplitude_rad * dds / duration**2, 0)
     return angle, rate, accel
+
+
+def root_motion_function() -> ca.Function:
+    """root_motion_symbolic as a Function (t_s, [t_up, t_hold_up, t_down, t_hold_down,
+    amplitude_rad]) -> (angle_rad, rate_rad_s, accel_rad_s2): one function for every stroke."""
+    t = ca.SX.sym("t_s")
+    p = ca.SX.sym("stroke", 5)
+    angle, rate, accel = root_motion_symbolic(t, p[0], p[1], p[2], p[3], p[4])
+    return ca.Function("featherstar_root_motion", [t, p], [angle, rate, accel],
+                       ["t_s", "stroke"], ["angle_rad", "rate_rad_s", "accel_rad_s2"])

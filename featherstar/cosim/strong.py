@@ -17,14 +17,15 @@ import ctypes
 import math
 import time
 from ctypes import c_double
-from typing import Callable, Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from ._cvode import CVodeError, CVodeIntegrator
+from ._cvode import N_VGET_ARRAY_POINTER_ADDRESS, CVodeError, CVodeIntegrator
+from .compiled_rhs import compile_rhs
 from .context import Context, Recording
 from .errors import StepError
-from .schedule import topo_schedule
+from .schedule import Step, schedule_steps, topo_schedule
 from .system import System
 from .units import Unit
 
@@ -33,8 +34,8 @@ class OdeGroup:
     """Units integrated together as one ODE by CVODE."""
 
     def __init__(self, system: System, context: Context, units: Sequence[Unit],
-                 rhs_ops: list[Callable[[], None]], t0: float, *, method: str, rtol: float, atol: float,
-                 max_step: float = 0.0, check_finite: bool = False) -> None:
+                 rhs_steps: list[Step], t0: float, *, method: str, rtol: float, atol: float,
+                 max_step: float = 0.0, check_finite: bool = False, compiled: bool = True) -> None:
         self.system = system
         self.context = context
         self.units = list(units)
@@ -47,7 +48,7 @@ class OdeGroup:
                 off += u.n_states
         self.n = max(off, 1)
         self.dummy = off == 0
-        self.ops = rhs_ops
+        self.ops = [step.run for step in rhs_steps]
         self.event_units = [u for u in units if u.continuous and u.n_events > 0]
         self.n_events = sum(u.n_events for u in self.event_units)
         self.needs_completed = [u for u in units if u.continuous and u.needs_completed_step]
@@ -55,7 +56,7 @@ class OdeGroup:
         self.check_finite = check_finite
         self._ydot_type = c_double * self.n
         x0 = self._initial_states()
-        rhs = self._rhs if (check_finite or self.dummy) else self._fast_rhs()
+        rhs = self._rhs if (check_finite or self.dummy) else self._compiled_or_fast_rhs(rhs_steps, compiled)
         lmm, _, nonlinear = method.partition("-")
         self.cv = CVodeIntegrator(self.n, rhs, t0, x0, method=lmm, nonlinear=nonlinear or "newton",
                                   rtol=rtol, atol=atol,
@@ -94,6 +95,19 @@ class OdeGroup:
         # (off by default: a NaN derivative fails CVODE's error test anyway, and `diagnose`
         # then names the block and state; the check costs ~5 µs per call at 45 states)
         return 0
+
+    def _compiled_or_fast_rhs(self, steps: list[Step], compiled: bool) -> Any:
+        """The right-hand side compiled into C calls (featherstar.cosim.compiled_rhs) when the
+        group allows it, else `_fast_rhs`; context.stats["rhs"] says which and why."""
+        if compiled:
+            program = compile_rhs(self.context, self.timed, self.stateful, steps, N_VGET_ARRAY_POINTER_ADDRESS)
+            if not isinstance(program, str):
+                self.context.stats["rhs"] = "compiled"
+                return program
+            self.context.stats["rhs"] = f"python ({program})"
+        else:
+            self.context.stats["rhs"] = "python (master.compiled_rhs = false)"
+        return self._fast_rhs()
 
     def _fast_rhs(self) -> Callable[[float, int, int], int]:
         """`_rhs` through each unit's public fast path (featherstar.cosim.units.FastPath: the raw FMI entry
@@ -179,9 +193,9 @@ class OdeGroup:
         return any(u.discrete_inputs_changed() for u in self.discrete_units)
 
     def integrate(self, t_target: float, t_end: float, out_times: np.ndarray, k: int,
-                  on_output: Callable[[float], None]) -> tuple[int, bool]:
-        """Integrate to t_target (<= t_end, the run's end), calling on_output(t) with every unit
-        set at each output time out_times[k:] <= t_target. Returns the index of the next output
+                  on_output: Callable[[float, int], None]) -> tuple[int, bool]:
+        """Integrate to t_target (<= t_end, the run's end), calling on_output(t, y_address) at
+        each output time out_times[k:] <= t_target (it puts every unit at that point). Returns the index of the next output
         time and whether a unit asked to terminate. Without events the stop time is t_end, so
         integrating in chunks takes the same steps as one call; with events the solver stops at
         t_target (and at each time event).
@@ -197,16 +211,14 @@ class OdeGroup:
         if sampled and self.discrete_inputs_pending(cv.t) and self.handle_event(cv.t):
             return k, True
         while k < n_out and out_times[k] <= cv.t + eps:
-            self.set_point(out_times[k], cv.y_address)
-            on_output(out_times[k])
+            on_output(out_times[k], cv.y_address)
             k += 1
         if simple:
             cv.set_stop_time(t_end)
             while k < n_out and out_times[k] <= t_target + eps:
                 tout = min(out_times[k], t_end)
                 cv.advance(tout)
-                self.set_point(tout, cv.y_address)
-                on_output(tout)
+                on_output(tout, cv.y_address)
                 k += 1
             if cv.t < t_target - eps:
                 cv.advance(t_target)
@@ -221,8 +233,7 @@ class OdeGroup:
             t_cur = cv.t
             while k < n_out and out_times[k] < t_cur - eps:
                 y = cv.interpolate(out_times[k])
-                self.set_point(out_times[k], ctypes.addressof(y))
-                on_output(out_times[k])
+                on_output(out_times[k], ctypes.addressof(y))
                 k += 1
             event = flag == 2 or abs(t_cur - self.next_time_event()) <= eps
             if self.needs_completed and not event:
@@ -237,8 +248,7 @@ class OdeGroup:
                 event = self.discrete_inputs_pending(t_cur)
             terminate = event and self.handle_event(t_cur)
             while k < n_out and out_times[k] <= t_cur + eps:
-                self.set_point(out_times[k], cv.y_address)
-                on_output(out_times[k])
+                on_output(out_times[k], cv.y_address)
                 k += 1
             if terminate:
                 return k, True
@@ -326,12 +336,19 @@ class StrongCoupling:
         """Build the schedules and the solver over the started units; record the start."""
         system, context, m = self.system, self.context, self.system.master
         watched = watched_out_nodes(system, self.recording)
-        self.rhs_ops = topo_schedule(system, context, self.units, set(), skip_static=True)
-        self.rec_ops = topo_schedule(system, context, self.units, watched, skip_static=True)
+        rhs_steps = schedule_steps(system, context, self.units, set(), skip_static=True)
+        self.rhs_ops = [step.run for step in rhs_steps]
+        rec_steps = schedule_steps(system, context, self.units, watched, skip_static=True)
+        self.rec_ops = [step.run for step in rec_steps]
         self.init_ops = topo_schedule(system, context, self.units, watched)
         self.t_end = t_end
-        group = self.group = OdeGroup(self.system, self.context, self.units, self.rhs_ops, t0, method=m.method,
-                                      rtol=m.rtol, atol=m.atol, max_step=m.max_step_s)
+        group = self.group = OdeGroup(self.system, self.context, self.units, rhs_steps, t0, method=m.method,
+                                      rtol=m.rtol, atol=m.atol, max_step=m.max_step_s, compiled=m.compiled_rhs)
+        # the output points as one C call too, when the right-hand side compiled
+        self.record_program = None
+        if context.stats.get("rhs") == "compiled":
+            program = compile_rhs(context, group.timed, group.stateful, rec_steps, N_VGET_ARRAY_POINTER_ADDRESS)
+            self.record_program = None if isinstance(program, str) else program
         self.consistent(t0)
         if group.discrete_units and group.discrete_inputs_pending(t0):
             # discrete inputs are taken in event mode before the start is recorded (values after the event)
@@ -345,8 +362,7 @@ class StrongCoupling:
         self.k = 0
         eps = 1e-12 * max(1.0, abs(t_end))
         while self.k < len(out_times) and out_times[self.k] <= t0 + eps:   # the start's outputs
-            group.set_point(out_times[self.k], group.cv.y_address)
-            self._on_output(out_times[self.k])
+            self._on_output(out_times[self.k], group.cv.y_address)
             self.k += 1
         self.recording.check_rows()
         self.context.stats["states"] = 0 if group.dummy else group.n
@@ -366,9 +382,15 @@ class StrongCoupling:
         self.consistent(t)
         self.group.cv.reinit(t)
 
-    def _on_output(self, t: float) -> None:
-        for op in self.rec_ops:
-            op()
+    def _on_output(self, t: float, y_address: int) -> None:
+        """Every unit at (t, y) with the recorded outputs evaluated, checked, recorded."""
+        if self.record_program is not None:
+            self.record_program.point(t, y_address)
+            self.context.t = t
+        else:
+            self.group.set_point(t, y_address)
+            for op in self.rec_ops:
+                op()
         self.check(t)
         self.recording.record(t)
         if len(self.recording.rows) % 256 == 0:

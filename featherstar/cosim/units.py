@@ -42,6 +42,27 @@ class FastPath:
     get_derivatives: Callable[[int], None]
 
 
+@dataclass(frozen=True)
+class NativeCalls:
+    """A Model Exchange unit's C entry points for the compiled right-hand side
+    (featherstar.cosim.compiled_rhs): addresses of its FMI functions and of the instance they
+    take. `fmi3` selects fmi3Set/GetFloat64 over FMI 2's Set/GetReal for the ports. `inputs` and
+    `outputs` are the port indices whose values travel as plain float64 through those calls;
+    other ports take the Python path."""
+
+    instance: int
+    fmi3: bool
+    set_time: int
+    set_states: int
+    get_derivatives: int
+    set_float64: int
+    get_float64: int
+    value_refs_in: tuple[int, ...]
+    value_refs_out: tuple[int, ...]
+    inputs: frozenset[int]
+    outputs: frozenset[int]
+
+
 class Unit:
     name: str = ""
     memoryless = False
@@ -91,6 +112,20 @@ class Unit:
 
     def fast_path(self) -> FastPath:
         return FastPath(self.set_time, self.set_states, self.get_derivatives)
+
+    def status_error(self, function: str, t: float, status: int) -> StepError:
+        """The error for a call of this unit that returned a bad status (FMI numbering)."""
+        return StepError(self.name, t, f"{function} returned status {status}", function=function)
+
+    def native_calls(self) -> NativeCalls | None:
+        """The unit's C entry points, if it has them (FMUs in Model Exchange)."""
+        return None
+
+    def time_function(self) -> tuple[Any, list[float]] | None:
+        """A memoryless unit without inputs may give its outputs as a CasADi Function f(t, p)
+        (one scalar result per output, in order) and the values of p for this run: the compiled
+        right-hand side evaluates it in C."""
+        return None
 
     def state_names(self) -> list[str]:
         return []
@@ -145,6 +180,10 @@ class PyUnit(Unit):
         # a memoryless block without inputs may offer outputs_at(t_s) -> its output values in
         # `outputs` order (the stroke controller): the hot loop then skips the dicts
         self._fast = getattr(block, "outputs_at", None) if self.memoryless and not self.input_names else None
+
+    def time_function(self) -> tuple[Any, list[float]] | None:
+        offer = getattr(self.block, "time_function", None)
+        return offer() if offer is not None and self._fast is not None else None
 
     def start(self, t0: float, t_end: float, rtol: float) -> None:
         self.t = t0
