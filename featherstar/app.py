@@ -53,10 +53,14 @@ def _unavailable(sub: argparse._SubParsersAction, entry: Subcommands, error: str
         parser.set_defaults(func=fail)
 
 
-def build_parser(subcommands: Sequence[Subcommands] = SUBCOMMANDS) -> argparse.ArgumentParser:
+def build_parser(subcommands: Sequence[Subcommands] = SUBCOMMANDS, only: str | None = None) -> argparse.ArgumentParser:
+    """The parser with every entry's subcommands, or with only the entry providing `only` (a
+    command line that names its subcommand imports only that module: `featherstar run` does not
+    pay for scikit-optimize's import)."""
     parser = argparse.ArgumentParser(prog="featherstar", description="Co-simulation toolkit for soft robotic swimmers")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for entry in subcommands:
+    chosen = [e for e in subcommands if only in e.names]
+    for entry in chosen or subcommands:
         try:
             module = importlib.import_module(entry.module)
             module.register(sub)
@@ -66,7 +70,9 @@ def build_parser(subcommands: Sequence[Subcommands] = SUBCOMMANDS) -> argparse.A
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    named = argv[0] if argv and not argv[0].startswith("-") else None
+    parser = build_parser(only=named)
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()
