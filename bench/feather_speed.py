@@ -1,7 +1,7 @@
 """The feather's speed with the O(N) chain solve, against the dense formulation it replaced.
 
 In one run, on one machine (compare the ratios: a shared machine is noisy):
-1. Compiled RHS cost per evaluation (bench/rhs_cost.py: CasADi's C compiled as the FMU export
+1. Compiled RHS cost per evaluation (bench/_rhs_cost.py: CasADi's C compiled as the FMU export
    compiles model code, called in a C loop): state derivatives only, and state derivatives plus
    outputs (what an FMU evaluates per call), for plain / chordwise / spanwise at N = 5, 10, 20, 40;
    and the formulation before the change (commit 32dc597: dense mass matrix, symbolic LDLᵀ) at
@@ -50,7 +50,7 @@ sys.path.insert(0, str(ROOT))
 import casadi as ca  # noqa: E402
 import matplotlib  # noqa: E402
 
-from bench.rhs_cost import rhs_ns_per_evaluation  # noqa: E402
+from bench._rhs_cost import rhs_ns_per_evaluation  # noqa: E402
 from featherstar.cosim.monolithic import run_monolithic  # noqa: E402
 from featherstar.cosim.run import run_scene  # noqa: E402
 from featherstar.cosim.scene import scene_from_dict  # noqa: E402

@@ -57,3 +57,21 @@ def test_runs_every_script_and_writes_one_report(tmp_path, monkeypatch):
     assert saved["results"]["beta"] == {"quick": True, "value": 42}
     md = (tmp_path / "out" / "dashboard.md").read_text()
     assert "| alpha | ok |" in md and "| broken | FAILED (rc 3" in md
+
+
+def test_quick_leaves_out_full_run_only_scripts_and_says_so(tmp_path, monkeypatch):
+    from featherstar.cosim.dashboard import runner
+
+    checkout = tmp_path / "checkout"
+    bench = checkout / "bench"
+    bench.mkdir(parents=True)
+    (checkout / "pyproject.toml").write_text("[project]\nname = 'x'\n")
+    (bench / "slow.py").write_text("raise SystemExit('a full-run-only script must not run in --quick')\n")
+    (bench / "fast.py").write_text("pass\n")
+    monkeypatch.setitem(runner.PLANS, "slow.py", runner.Plan(None))
+    monkeypatch.chdir(checkout)
+    report = run_dashboard(quick=True, out=tmp_path / "out", measure=False, log=lambda msg: None)
+    assert set(report["benches"]) == {"fast"}
+    assert report["full_run_only"] == ["slow.py"]
+    md = (tmp_path / "out" / "dashboard.md").read_text()
+    assert "| slow | not run: full runs only (`python bench/slow.py`)" in md

@@ -13,7 +13,7 @@ from typing import Any, Callable, Sequence
 from ...fmu_src.errors import FeatherstarError
 
 from .report import load_json, derive, plot_all, write_markdown
-from .runner import BenchError, find_bench_dir, make_tasks, run_tasks
+from .runner import BenchError, find_bench_dir, full_run_only, make_tasks, run_tasks
 from .timing import measure
 
 
@@ -62,6 +62,7 @@ def run_dashboard(quick: bool = False, out: Path | None = None, *, jobs: int = 2
             data["optimizer_timing"] = last
     report = {"quick": quick, "started": started, "machine": machine,
               "bench_dir": str(bench) if bench is not None else None, "benches": benches,
+              "full_run_only": full_run_only(bench) if quick else [],
               "total_s": time.perf_counter() - t0}
     report["summary"] = derive(data, quick)
     data["summary"] = report["summary"]

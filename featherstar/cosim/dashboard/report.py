@@ -221,6 +221,8 @@ def write_markdown(report: dict[str, Any], out: Path) -> Path:
     for name, b in report["benches"].items():
         status = "timed out" if b["timed_out"] else ("ok" if b["returncode"] == 0 else f"FAILED (rc {b['returncode']}, see logs/{name}.log)")
         lines.append(f"| {name} | {status} | {b['wall_s']:.0f} | {', '.join(b['outputs']) or '–'} |")
+    for name in report.get("full_run_only", []):
+        lines.append(f"| {Path(name).stem} | not run: full runs only (`python bench/{name}`) | – | – |")
     figs = report.get("figures", {})
     if "work_precision" in figs:
         lines += ["", "## Work-precision per scene and coupling mode", "",

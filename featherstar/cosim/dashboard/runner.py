@@ -37,9 +37,10 @@ def bench_scripts(bench: Path) -> list[Path]:
 
 @dataclass(frozen=True)
 class Plan:
-    """How the dashboard runs one script. `quick_args` replace a bare --quick in quick mode."""
+    """How the dashboard runs one script. `quick_args` replace a bare --quick in quick mode;
+    None: the script runs in full mode only (too long for --quick's 5 minutes)."""
 
-    quick_args: tuple[str, ...] = ("--quick",)
+    quick_args: tuple[str, ...] | None = ("--quick",)
     full_args: tuple[str, ...] = ()
     alone: bool = False  # timing-sensitive: nothing else runs meanwhile
     expected_s: float = 60.0  # for scheduling the longest first
@@ -52,7 +53,19 @@ PLANS: dict[str, Plan] = {
     "optimizer_timing.py": Plan(("--quick", "--synthetic"), expected_s=20),
     "hil_loop_rate.py": Plan(("--quick",), alone=True, expected_s=30),
     "stability_map.py": Plan(("--quick",), expected_s=90),
+    "feather_speed.py": Plan(("--quick",), expected_s=150),
+    "optimizer_speed.py": Plan(("--seeds", "1", "--iterations", "8"), expected_s=60),
+    "me_weak_accuracy.py": Plan((), expected_s=30),
+    # minutes each even when reduced, or real time on the emulator: full runs only
+    "flap_mechanisms.py": Plan(None, expected_s=240),
+    "bench_loop_prior.py": Plan(None, expected_s=300),
 }
+
+
+def full_run_only(bench: Path | None) -> list[str]:
+    """The checkout's scripts that `--quick` leaves out."""
+    return [s.name for s in (bench_scripts(bench) if bench is not None else [])
+            if PLANS.get(s.name, Plan()).quick_args is None]
 MEASURE_EXPECTED_S = 90.0
 
 
@@ -81,6 +94,8 @@ def make_tasks(bench: Path | None, out: Path, quick: bool, measure: bool = True)
     logs = out / "logs"
     for script in bench_scripts(bench) if bench is not None else []:
         plan = PLANS.get(script.name, Plan())
+        if quick and plan.quick_args is None:
+            continue
         args = list(plan.quick_args if quick else plan.full_args)
         writes_to = None
         if _takes_out(script):

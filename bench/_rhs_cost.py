@@ -5,7 +5,7 @@ for model code (gcc -O2; -O1 with priority colouring above the export's size lim
 a C loop, so that the figure is the model's cost alone: no Python, no FMI call. Between calls
 the state's first component moves by a rounding-level amount, so no call can be skipped.
 
-    from bench.rhs_cost import rhs_ns_per_evaluation
+    from bench._rhs_cost import rhs_ns_per_evaluation
 """
 from __future__ import annotations
 
