@@ -19,8 +19,9 @@ In one run, on one machine (compare the ratios: a shared machine is noisy):
    scatter, and a TR inside the band is as good as the old model's own).
 4. 6-period run time of the kinematic scene through the master against N (chordwise and plain).
 5. Where the integrator's steps go: steps and RHS evaluations of the chordwise scene with one
-   suspect relaxed at a time (flap-stop stiffness, smoothing and damping, bending stiffness,
-   joint damping, BDF): probes of what limits the step, not changes to the model.
+   suspect relaxed at a time (flap-stop stiffness, smoothing and damping, bending stiffness, the
+   sheet's material damping removed, BDF): probes of what limits the step, not changes to the
+   model; and the short spanwise sweep geometry with and without the sheet's damping.
 
 Writes docs/results/feather_speed.json and feather_speed.png.
 
@@ -278,9 +279,15 @@ STEP_VARIANTS = {
     "stop smoothing x 6 (3 deg)": {"feather.contact_smoothing_rad": 0.05236},
     "stop damping 0": {"feather.contact_damping_Nms_rad_m": 0.0},
     "bending stiffness E / 10": {"feather.youngs_modulus_Pa": 1.5e8},
-    "joint damping 1e-5 N.m.s/rad": {"feather.joint_damping_Nms_rad": 1e-5},
+    "no sheet damping (retardation 0)": {"feather.retardation_time_s": 0.0},
     "BDF instead of Adams": {"master.method": "bdf"},
 }
+
+# The sweep geometry whose undamped chain rang at tens of kHz (docs/model.md, material damping):
+# spanwise, l = 60 mm, LR 1.04, the paper's 0.1 / 0.5 / 0 s stroke, the first 0.2 s on the test bed.
+SHORT_SPANWISE = {"feather.morphology": "spanwise", "feather.width_m": 0.12, "feather.length_m": 0.06,
+                  "feather.length_ratio": 0.06 / 0.0575, "controller.t_up_s": 0.1, "controller.t_hold_up_s": 0.0,
+                  "controller.t_down_s": 0.5, "controller.t_hold_down_s": 0.0, "master.t_end_s": 0.2}
 
 
 def step_budget() -> list[dict[str, Any]]:
@@ -292,6 +299,18 @@ def step_budget() -> list[dict[str, Any]]:
         rows.append(row)
         log(f"  {label:30s} steps {row['steps']:6d}  RHS evaluations {row['rhs_evals']:6d}  "
             f"{row['wall_s']:5.2f} s  TR {row['thrust_ratio']:.3f}")
+    for label, extra in (("short spanwise, as shipped", {}),
+                         ("short spanwise, no sheet damping", {"feather.retardation_time_s": 0.0})):
+        started = time.perf_counter()
+        result = run_scene("testbed", {**SHORT_SPANWISE, **extra}, outputs=["feather.flap_angle_rad"])
+        stats = result.summary["stats"]
+        flap = result["feather.flap_angle_rad"]
+        row = {"variant": label, "overrides": {**SHORT_SPANWISE, **extra}, "wall_s": time.perf_counter() - started,
+               "steps": stats["steps"], "rhs_evals": stats["rhs_evals"],
+               "flap_angle_range_rad": [float(flap.min()), float(flap.max())]}
+        rows.append(row)
+        log(f"  {label:30s} steps {row['steps']:8d}  RHS evaluations {row['rhs_evals']:8d}  {row['wall_s']:6.2f} s  "
+            f"flap {row['flap_angle_range_rad'][0]:.5f}..{row['flap_angle_range_rad'][1]:.5f} rad")
     return rows
 
 

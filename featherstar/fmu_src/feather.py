@@ -38,6 +38,17 @@ GAUSS = (0.5 - 0.5 / math.sqrt(3.0), 0.5 + 0.5 / math.sqrt(3.0))
 ADDED_MASS_CHORD = (0.5 - 1.0 / math.sqrt(32.0), 0.5 + 1.0 / math.sqrt(32.0))
 
 
+#: The sheet's material damping as a Kelvin-Voigt solid, sigma = E (eps + tau d(eps)/dt): a mode at
+#: frequency f is damped with ratio zeta = pi f tau. Polypropylene's loss factor near room
+#: temperature is eta ~ 0.05-0.1 from 1 to 100 Hz; tau = eta / (2 pi f_ref) with eta = 0.05 and
+#: f_ref = 50 Hz, above what the stroke excites (ramps >= 0.1 s), so every mode the stroke drives is
+#: damped no more than the real sheet (zeta <= eta / 2), while the lumped chain's highest modes
+#: (tens of kHz for short links: artifacts of the discretization, with no damping they ring for
+#: ever and set the integrator's step, bench/feather_speed.py section 5) are damped as a material
+#: damps them.
+RETARDATION_TIME_S = 0.05 / (2 * math.pi * 50.0)
+
+
 def _common_parameters() -> list[Parameter]:
     return [
         Parameter("length_m", 0.115, "m", 0.0, 1.0, "feather length l (paper: 11.5 cm)", True),
@@ -53,7 +64,11 @@ def _common_parameters() -> list[Parameter]:
                   "peak-to-peak root stroke that sets each point's KC = pi*s*A/w (oscillatory drag)", True),
         Parameter("drag_coeff", 1.2, "1", 0.0, 10.0, "constant normal drag coefficient C_n when oscillatory_drag = 0 (steady plate 1.2)"),
         Parameter("added_mass_scale", 1.0, "1", 0.0, 3.0, "multiplier on the DNV 3D added-mass coefficient"),
-        Parameter("joint_damping_Nms_rad", 0.0, "N.m.s/rad", 0.0, 1.0, "viscous damping of each bending joint"),
+        Parameter("retardation_time_s", RETARDATION_TIME_S, "s", 0.0, 1.0,
+                  "Kelvin-Voigt retardation time of the sheet: each bending joint's damping is this times its "
+                  "stiffness (PP loss factor 0.05 matched at 50 Hz, see RETARDATION_TIME_S)"),
+        Parameter("joint_damping_Nms_rad", 0.0, "N.m.s/rad", 0.0, 1.0,
+                  "viscous damping of each bending joint added to the material's (retardation_time_s)"),
     ]
 
 
@@ -249,7 +264,8 @@ def _internal_torques(morphology, joints, q, psi, Q_rate, P, width, link_lengths
     for k, (kind, stiffness) in enumerate(joints):
         rate = Q_rate[k]
         if kind == "spring":
-            torques.append(stiffness * q[k] + P["joint_damping_Nms_rad"] * rate)
+            damping = P["retardation_time_s"] * stiffness + P["joint_damping_Nms_rad"]
+            torques.append(stiffness * q[k] + damping * rate)
             energy += 0.5 * stiffness * q[k] ** 2
         else:
             # Folding is a negative relative angle: the outer part trails on the upstroke.

@@ -163,7 +163,8 @@ def _internal_torques(morphology, joints, q, psi, Q_rate, P, width, link_lengths
     for k, (kind, stiffness) in enumerate(joints):
         rate = Q_rate[k]
         if kind == "spring":
-            torques.append(stiffness * q[k] + P["joint_damping_Nms_rad"] * rate)
+            damping = P["retardation_time_s"] * stiffness + P["joint_damping_Nms_rad"]
+            torques.append(stiffness * q[k] + damping * rate)
             energy += 0.5 * stiffness * q[k] ** 2
         else:
             # Folding is a negative relative angle: the outer part trails on the upstroke.
