@@ -3,14 +3,14 @@
 The load cell answers as unit 1 and the servo as unit 2 (an RS-485 line behind a TCP gateway),
 each behind its register map. Every request first advances the plant to the current wall-clock
 time, and so does a tick every `TICK_S` while nobody asks (a feather left alone between runs
-comes to rest, as on the bench), so the emulator behaves like the bench whatever the client's
-request rate.
+moves on as it would on the bench), so the emulator behaves like the bench whatever the
+client's request rate.
 
 **Behind real time.** The plant's state is served late when advancing it took longer than
 `lag_limit_s` of wall-clock time, when the event loop was held up that long (the process was not
 scheduled: the tick came late), or when plant time was dropped (`max_advance_s`). The emulator
-then sets the `lag_bit` of both devices' status words (if their maps have one) until each has
-been read once, and counts it (`lag_events`, `worst_lag_s`): a client sees the lag at its next
+then sets the `lag_bit` of both devices' status words (if their maps have one) until a client
+has read each of them, and counts it (`lag_events`, `worst_lag_s`): a client sees the lag at its next
 status read and can discard the data, which on a loaded machine otherwise lag the clock
 without the client noticing. The servo
 follows setpoints only once enabled (if its map has [enable]); the load cell reports the
@@ -190,11 +190,13 @@ class Emulator:
             return DEVICE_FAILURE
         return None
 
-    def _status(self, field: StatusField, device: str, overload: bool) -> list[int]:
+    def _status(self, field: StatusField, device: str, overload: bool, address: int, count: int) -> list[int]:
+        """The status word; a lag report is cleared only when this read returns the word."""
         status = Status(stable=abs(self._rate_rad_s) < _STABLE_RATE_RAD_S,
                         overload=overload or self._faults.get(device) == "overload",
                         error=self._faults.get(device) == "error", lagging=self._lag_unread[device])
-        self._lag_unread[device] = False
+        if address <= field.address < address + count:
+            self._lag_unread[device] = False
         return [encode_status(field, status)]
 
     @staticmethod
@@ -231,7 +233,7 @@ class Emulator:
                 self._put_number(registers, m.value, reading_N / m.value.to_si)
                 if m.status is not None:
                     _put(registers, m.status.address,
-                         self._status(m.status, "loadcell", abs(force_N) > self.capacity_N))
+                         self._status(m.status, "loadcell", abs(force_N) > self.capacity_N, address, count))
             return self._read(registers, address, count)
 
     async def _servo_action(self, function_code: int, space: str, address: int, count: int,
@@ -251,7 +253,7 @@ class Emulator:
                     self._put_number(registers, m.position,
                                      self.plant.angle_rad / m.position.to_si)
                 if m.status is not None:
-                    _put(registers, m.status.address, self._status(m.status, "servo", False))
+                    _put(registers, m.status.address, self._status(m.status, "servo", False, address, count))
             return self._read(registers, address, count)
 
     def _servo_write(self, registers: dict[int, int], address: int,

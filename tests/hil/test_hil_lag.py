@@ -10,10 +10,12 @@ from __future__ import annotations
 import time
 
 import pytest
+from pymodbus.client import ModbusTcpClient
 
 from featherstar.cosim.validity import judge_periods
 from featherstar.hil.blocks import LoadCell, Servo
-from featherstar.hil.emulator import LAG_LIMIT_S
+from featherstar.hil.codec import decode_status
+from featherstar.hil.emulator import LAG_LIMIT_S, LOADCELL_UNIT
 from featherstar.hil.plant import FlatPlatePlant
 
 pytestmark = pytest.mark.hil
@@ -86,3 +88,17 @@ def test_a_stalled_event_loop_sets_the_lag_bit(make_emulator):
     finally:
         cell.close()
     assert [e["t_s"] for e in cell.events if e["kind"] == "lag"] == [0.010]
+
+
+def test_a_lag_report_waits_for_a_read_that_returns_the_status_word(make_emulator):
+    emu = make_emulator(seed=1)
+    status = emu.emulator.loadcell_map.status       # float32 map: value at 0-1, status at 2
+    with ModbusTcpClient("127.0.0.1", port=emu.port, timeout=1, retries=0) as client:
+        with emu.emulator.lock:
+            time.sleep(3 * LAG_LIMIT_S)
+        time.sleep(0.05)
+        client.read_input_registers(0, count=2, device_id=LOADCELL_UNIT)           # value only
+        word = client.read_input_registers(status.address, count=1, device_id=LOADCELL_UNIT).registers[0]
+        assert decode_status(status, word).lagging
+        word = client.read_input_registers(status.address, count=1, device_id=LOADCELL_UNIT).registers[0]
+        assert not decode_status(status, word).lagging
