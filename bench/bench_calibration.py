@@ -109,6 +109,10 @@ def _offline_run(morphology: str, overrides: dict, hidden: dict, seed: int) -> d
     return {"time_s": time_s, "angle_rad": angle, "thrust_N": thrust, "summary": metrics}
 
 
+class NoCleanRun(Exception):
+    """Every attempt of a real-time run was discarded (the machine is too busy for the rate)."""
+
+
 def _cpu_s(pid: int) -> float:
     fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
@@ -145,7 +149,7 @@ def _clean_run(morphology: str, overrides: dict, hidden: dict, seed: int, discar
             return run
         discarded.append(reasons)
         print(f"  discarded: {'; '.join(reasons)[:150]}", flush=True)
-    raise SystemExit(f"no clean run in {ATTEMPTS} attempts: the machine is too loaded")
+    raise NoCleanRun(f"no clean run in {ATTEMPTS} attempts: the machine is too loaded ({discarded[-1][0][:120]})")
 
 
 def real_time() -> list[dict]:
@@ -258,11 +262,18 @@ def main() -> None:
                            "load_average_at_start": list(os.getloadavg())}}
     if not (args.skip_cpu or args.offline):
         results["real_time"] = real_time()
-    results["calibration"], fit = calibration(args.morphology, args.offline)
+    fit = None
+    try:
+        results["calibration"], fit = calibration(args.morphology, args.offline)
+    except NoCleanRun as exc:
+        print(exc)
+        results["calibration"] = {"morphology": args.morphology, "error": str(exc)}
     results["machine"]["load_average_at_end"] = list(os.getloadavg())
     results["wall_s"] = round(time.perf_counter() - started, 1)
     path = args.out / f"bench_calibration_{args.morphology}{'_offline' if args.offline else ''}.json"
     path.write_text(json.dumps(results, indent=2) + "\n")
+    if fit is None:
+        raise SystemExit(f"wrote {path} without a calibration: {results['calibration']['error']}")
     errors = ", ".join(f"{k.split('_')[0]} {v:+.1%}" for k, v in results["calibration"]["relative_error"].items())
     where = "the emulator's plant, offline" if args.offline else "the real-time emulator"
     plot(fit, path.with_suffix(".png"), f"{args.morphology} feather, {where}\nfitted vs hidden: {errors}; R² {fit.r_squared:.4f}")
