@@ -134,10 +134,12 @@ class Emulator:
         self.requests += 1
         return self._advance_plant()
 
-    def tick(self, late_s: float = 0.0) -> None:
+    def tick(self, due_s: float | None = None) -> None:
         """Keep plant time with the wall clock while no request does (called every TICK_S by
-        `serve`); `late_s`: how late this tick came (the event loop was held up)."""
+        `serve`); `due_s`: when this tick was due (time.monotonic()). It is late when the event
+        loop was held up, or when the lock was (a request, fault injection)."""
         with self.lock:
+            late_s = 0.0 if due_s is None else time.monotonic() - due_s
             if late_s > self.lag_limit_s:
                 self._behind(late_s, "the event loop was held up (process not scheduled?)")
             if self._t_mono is None or time.monotonic() - self._t_mono >= TICK_S:
@@ -300,14 +302,13 @@ async def serve(emulator: Emulator, host: str, port: int, stop: asyncio.Event,
 
 
 async def _keep_time(emulator: Emulator, stop: asyncio.Event) -> None:
-    """Tick the emulator every TICK_S, telling it how late each tick came."""
+    """Tick the emulator every TICK_S, telling it when each tick was due."""
     due = time.monotonic()
     while not stop.is_set():
         due += TICK_S
         await asyncio.sleep(max(0.0, due - time.monotonic()))
-        late_s = time.monotonic() - due
-        emulator.tick(late_s)
-        if late_s > TICK_S:
+        emulator.tick(due)
+        if time.monotonic() - due > TICK_S:
             due = time.monotonic()   # held up: do not fire the missed ticks in a burst
 
 
