@@ -49,7 +49,8 @@ def _realtime_lines(summary: dict[str, Any]) -> list[str]:
     if summary.get("deadline_misses"):
         lines.append(f"  {'deadline misses':<30} {summary['deadline_misses']} "
                      f"(worst {1e3 * summary.get('worst_lateness_s', 0.0):.1f} ms late)")
-    for key, label in (("gaps", "data gaps (device recovered)"), ("reconnects", "reconnects")):
+    for key, label in (("gaps", "data gaps (device recovered)"), ("reconnects", "reconnects"),
+                       ("lags", "device behind real time")):
         if summary.get(key):
             lines.append(f"  {label:<30} {summary[key]}")
     validity = summary.get("validity") or {}

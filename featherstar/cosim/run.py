@@ -122,7 +122,7 @@ def _loop_stats(context: Context) -> list[dict[str, Any]]:
 
 
 def _hardware_events(units: Mapping[str, Unit]) -> list[dict[str, Any]]:
-    """Recoveries and reconnects the hardware blocks noted (their `events` list), by time."""
+    """Recoveries, reconnects and lag reports the hardware blocks noted (their `events` list), by time."""
     events = [dict(e) for u in units.values()
               for e in getattr(getattr(u, "block", None), "events", None) or ()]
     return sorted(events, key=lambda e: float(e.get("t_s", 0.0)))
@@ -131,7 +131,7 @@ def _hardware_events(units: Mapping[str, Unit]) -> list[dict[str, Any]]:
 def _realtime_summary(plan: Plan, context: Context, units: Mapping[str, Unit], t: np.ndarray,
                       signals: Mapping[str, np.ndarray], summary: dict[str, Any],
                       finished: bool) -> bool:
-    """Deadline misses, gaps and reconnects into the summary; the validity verdict when the
+    """Deadline misses, gaps, reconnects and lag reports into the summary; the validity verdict when the
     run finished. Returns whether the run's result can be trusted."""
     sc = plan.scene
     events = _hardware_events(units)
@@ -140,6 +140,7 @@ def _realtime_summary(plan: Plan, context: Context, units: Mapping[str, Unit], t
     summary["worst_lateness_s"] = max((s for _, s in late), default=0.0)
     summary["gaps"] = sum(e.get("kind") == "gap" for e in events)
     summary["reconnects"] = sum(e.get("kind") == "reconnect" for e in events)
+    summary["lags"] = sum(e.get("kind") == "lag" for e in events)
     summary["hardware_events"] = events[:100]   # bounded: a flapping link must not bloat it
     warnings = [f"{name}: {w}" for name, u in units.items()
                 for w in getattr(getattr(u, "block", None), "warnings", None) or ()]

@@ -9,6 +9,8 @@ A metric period is invalid when, inside it,
   - a step started more than MAX_LATE_S late (a stall: the bench ran open-loop), or
   - more than MAX_MISS_FRACTION of its steps missed their deadline (started > 1 step late), or
   - a device needed a recovery (a data gap), or
+  - a device reported its plant behind real time (an emulator's status lag bit: its data lag
+    the clock by more than its limit), or
   - it lies at or after a load-cell reconnect (the tare is unknown until the end of the run).
 A run is complete only if at least MIN_VALID_FRACTION of the window's periods (and at least
 one) are valid; otherwise `complete` is false and `featherstar run` exits with status 2.
@@ -55,6 +57,8 @@ def judge_periods(window_s: Sequence[float], period_s: float, n_periods: int, st
             t = float(e.get("t_s", math.nan))
             if e.get("kind") == "gap" and ta <= t < tb:
                 reasons.append(f"{e.get('device')}: data gap at t={t:.3f} s")
+            elif e.get("kind") == "lag" and ta <= t < tb:
+                reasons.append(f"{e.get('device')}: plant behind real time at t={t:.3f} s")
             elif e.get("kind") == "reconnect" and e.get("tare_unknown") and t < tb:
                 reasons.append(f"{e.get('device')}: reconnected at t={t:.3f} s, tare unknown")
             elif e.get("kind") == "reconnect" and ta <= t < tb:

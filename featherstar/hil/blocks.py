@@ -101,6 +101,7 @@ class LoadCell(ModbusDevice):
     def do_step(self, t_s: float, h_s: float) -> None:
         self._check_started()
         self._guard(t_s + h_s, self._sample)
+        self._note_lag(t_s + h_s, self.status)
 
     def close(self) -> None:
         self._started = False
@@ -202,6 +203,7 @@ class Servo(ModbusDevice):
         self._angle_rad, self._rate_rad_s, self._accel_rad_s2 = safe_rad, 0.0, 0.0
         self._t_read: float | None = None
         self._enabled_generation: int | None = None
+        self.status = Status()
 
     @property
     def command_rad(self) -> float:
@@ -246,6 +248,7 @@ class Servo(ModbusDevice):
         self._guard(t_s + h_s, self._write)
         if self._plan.groups:
             self._guard(t_s + h_s, self._read)
+            self._note_lag(t_s + h_s, self.status)
         if self.map.position is None and h_s > 0:
             rate = (self._command_rad - previous) / h_s
             self._accel_rad_s2 = (rate - self._rate_rad_s) / h_s
@@ -303,9 +306,10 @@ class Servo(ModbusDevice):
     def _read(self) -> None:
         regs = self._plan.read(self.link, self.url.unit)
         now = time.monotonic()
-        if self.map.status is not None and decode_status(self.map.status,
-                                                         regs[self.map.status.address]).error:
-            raise FaultSignal(Fault.DEVICE_ERROR, "servo controller error bit set")
+        if self.map.status is not None:
+            self.status = decode_status(self.map.status, regs[self.map.status.address])
+            if self.status.error:
+                raise FaultSignal(Fault.DEVICE_ERROR, "servo controller error bit set")
         if self.map.position is None:
             return
         angle = field_value(self.map.position, regs) * self.map.position.to_si

@@ -74,15 +74,15 @@ def decode_value(field: NumberField, registers: Sequence[int],
 def encode_status(field: StatusField, status: Status) -> int:
     word = 0
     for bit, on in ((field.stable_bit, status.stable), (field.overload_bit, status.overload),
-                    (field.error_bit, status.error)):
+                    (field.error_bit, status.error), (field.lag_bit, status.lagging)):
         if bit is not None and on:
             word |= 1 << bit
     return word
 
 
 def decode_status(field: StatusField, word: int) -> Status:
-    """Bits the map does not define read as the harmless state (stable, no overload/error)."""
+    """Bits the map does not define read as the harmless state (stable, no overload/error/lag)."""
     def bit(n: int | None, default: bool) -> bool:
         return default if n is None else bool(word >> n & 1)
     return Status(stable=bit(field.stable_bit, True), overload=bit(field.overload_bit, False),
-                  error=bit(field.error_bit, False))
+                  error=bit(field.error_bit, False), lagging=bit(field.lag_bit, False))

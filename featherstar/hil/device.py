@@ -10,7 +10,8 @@ Start-up is patient whatever `reconnect_s` says: connecting, taring and enabling
 its first request) and are retried for up to `start_retry_s`; the per-step `timeout_s` applies
 once the run is under way.
 
-Every recovery and every new connection seen after start is appended to `events` (dicts with
+Every recovery, every new connection seen after start, and every report of an emulated
+device that its plant fell behind real time (the status lag bit) is appended to `events` (dicts with
 t_s, kind, device, detail): the master uses them to exclude the periods they touch from the
 metrics (featherstar.cosim.validity), so a recovered fault is never silent.
 """
@@ -26,7 +27,7 @@ from typing import Callable, Iterator, Mapping, Sequence, TypeVar
 from .errors import DeviceFault, Fault, HILConfigError, HILError
 from .link import FaultSignal, Link, acquire_link, check_transport, parse_url, release_link
 from .codec import decode_value
-from .registers import Function, NumberField
+from .registers import Function, NumberField, Status
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")
@@ -125,6 +126,12 @@ class ModbusDevice:
     def _note(self, t_s: float, kind: str, detail: str, **extra: object) -> None:
         self.events.append({"t_s": t_s, "kind": kind, "device": self.name, "detail": detail,
                             **extra})
+
+    def _note_lag(self, t_s: float, status: Status) -> None:
+        """An emulated device whose plant fell behind real time (its status lag bit): the data
+        around t_s lag the clock, so the master excludes the period (featherstar.cosim.validity)."""
+        if status.lagging:
+            self._note(t_s, "lag", "the device reports its plant behind real time (lag bit)")
 
     def _on_reconnect(self, t_s: float) -> None:
         """A new connection after start: the device may have rebooted. Blocks add what that

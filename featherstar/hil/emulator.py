@@ -2,7 +2,17 @@
 
 The load cell answers as unit 1 and the servo as unit 2 (an RS-485 line behind a TCP gateway),
 each behind its register map. Every request first advances the plant to the current wall-clock
-time, so the emulator behaves like the bench whatever the client's request rate. The servo
+time, and so does a tick every `TICK_S` while nobody asks (a feather left alone between runs
+moves on as it would on the bench), so the emulator behaves like the bench whatever the
+client's request rate.
+
+**Behind real time.** The plant's state is served late when advancing it took longer than
+`lag_limit_s` of wall-clock time, when the event loop was held up that long (the process was not
+scheduled: the tick came late), or when plant time was dropped (`max_advance_s`). The emulator
+then sets the `lag_bit` of both devices' status words (if their maps have one) until a client
+has read each of them, and counts it (`lag_events`, `worst_lag_s`): a client sees the lag at its next
+status read and can discard the data, which on a loaded machine otherwise lag the clock
+without the client noticing. The servo
 follows setpoints only once enabled (if its map has [enable]); the load cell reports the
 plant's thrust plus a preload (the feather's weight in water, removed by tare) plus Gaussian
 noise, as kg-force or whatever unit its map says, with the stable and overload bits.
@@ -44,6 +54,10 @@ FAULTS = ("freeze", "silent", "exception", "overload", "error")
 SERVO_RANGE_RAD = (-math.pi / 2, math.pi / 2)   # setpoint clamp when the map gives no range
 IDLE_TIMEOUT_S = 30.0                   # close connections silent for this long
 _STABLE_RATE_RAD_S = 0.05              # below this the feather (and the cell) is at rest
+TICK_S = 0.02                           # the plant is advanced at least this often, requests or not
+# A served state older than this is "behind real time": 5 steps of a 250 Hz client, 0.1 rad of
+# the servo's fastest travel, 2 % of a 1 s stroke.
+LAG_LIMIT_S = 0.02
 _SILENT_MAX_S = 30.0                    # a silent device answers eventually, so stop() ends
 _READ_FC = {Function.HOLDING: 3, Function.INPUT: 4}
 log = logging.getLogger(__name__)
@@ -58,12 +72,17 @@ class Emulator:
 
     def __init__(self, loadcell_map: LoadCellMap, servo_map: ServoMap, plant: Plant | None = None,
                  *, noise_N: float = 0.01, seed: int | None = None, preload_N: float = -0.3,
-                 capacity_N: float = LOADCELL_CAPACITY_N, max_advance_s: float = 0.5) -> None:
+                 capacity_N: float = LOADCELL_CAPACITY_N, max_advance_s: float = 0.5,
+                 lag_limit_s: float = LAG_LIMIT_S) -> None:
         self.loadcell_map, self.servo_map = loadcell_map, servo_map
         self.plant: Plant = plant if plant is not None else FlatPlatePlant()
         self.noise_N, self.preload_N, self.capacity_N = noise_N, preload_N, capacity_N
         # An idle emulator does not integrate hours of plant time on the next request.
         self.max_advance_s = max_advance_s
+        self.lag_limit_s = lag_limit_s
+        self.lag_events = 0
+        self.worst_lag_s = 0.0
+        self._lag_unread = {"loadcell": False, "servo": False}   # latched until the status is read
         self.rng = random.Random(seed)
         self.lock = threading.Lock()
         self.tare_N = 0.0
@@ -111,9 +130,23 @@ class Emulator:
         return self.plant.thrust_N + self.preload_N
 
     def _advance(self) -> bool:
-        """Advance the plant to now; False (after resetting it) if its step failed."""
-        now = time.monotonic()
+        """Advance the plant to now (a request); False (after resetting it) if its step failed."""
         self.requests += 1
+        return self._advance_plant()
+
+    def tick(self, due_s: float | None = None) -> None:
+        """Keep plant time with the wall clock while no request does (called every TICK_S by
+        `serve`); `due_s`: when this tick was due (time.monotonic()). It is late when the event
+        loop was held up, or when the lock was (a request, fault injection)."""
+        with self.lock:
+            late_s = 0.0 if due_s is None else time.monotonic() - due_s
+            if late_s > self.lag_limit_s:
+                self._behind(late_s, "the event loop was held up (process not scheduled?)")
+            if self._t_mono is None or time.monotonic() - self._t_mono >= TICK_S:
+                self._advance_plant()
+
+    def _advance_plant(self) -> bool:
+        now = time.monotonic()
         if self._t_mono is not None and now > self._t_mono:
             angle_rad, dt_s = self.plant.angle_rad, min(now - self._t_mono, self.max_advance_s)
             try:
@@ -125,8 +158,19 @@ class Emulator:
                 self._t_mono = now
                 return False
             self._rate_rad_s = (self.plant.angle_rad - angle_rad) / dt_s
+            if (dropped_s := now - self._t_mono - dt_s) > self.lag_limit_s:
+                self._behind(dropped_s, f"{dropped_s:.3f} s of plant time dropped (max_advance_s)")
+            if (compute_s := time.monotonic() - now) > self.lag_limit_s:
+                self._behind(compute_s, f"advancing the plant {dt_s * 1e3:.1f} ms took {compute_s * 1e3:.1f} ms")
         self._t_mono = now
         return True
+
+    def _behind(self, lag_s: float, why: str) -> None:
+        self.lag_events += 1
+        self.worst_lag_s = max(self.worst_lag_s, lag_s)
+        self._lag_unread = dict.fromkeys(self._lag_unread, True)
+        self.log(logging.WARNING, f"plant behind real time by {lag_s * 1e3:.0f} ms: {why} "
+                                  f"(lag bit set; event #{self.lag_events})")
 
     def _reset_plant(self, exc: Exception) -> None:
         self.plant_resets += 1
@@ -148,10 +192,13 @@ class Emulator:
             return DEVICE_FAILURE
         return None
 
-    def _status(self, field: StatusField, device: str, overload: bool) -> list[int]:
+    def _status(self, field: StatusField, device: str, overload: bool, address: int, count: int) -> list[int]:
+        """The status word; a lag report is cleared only when this read returns the word."""
         status = Status(stable=abs(self._rate_rad_s) < _STABLE_RATE_RAD_S,
                         overload=overload or self._faults.get(device) == "overload",
-                        error=self._faults.get(device) == "error")
+                        error=self._faults.get(device) == "error", lagging=self._lag_unread[device])
+        if address <= field.address < address + count:
+            self._lag_unread[device] = False
         return [encode_status(field, status)]
 
     @staticmethod
@@ -188,7 +235,7 @@ class Emulator:
                 self._put_number(registers, m.value, reading_N / m.value.to_si)
                 if m.status is not None:
                     _put(registers, m.status.address,
-                         self._status(m.status, "loadcell", abs(force_N) > self.capacity_N))
+                         self._status(m.status, "loadcell", abs(force_N) > self.capacity_N, address, count))
             return self._read(registers, address, count)
 
     async def _servo_action(self, function_code: int, space: str, address: int, count: int,
@@ -208,7 +255,7 @@ class Emulator:
                     self._put_number(registers, m.position,
                                      self.plant.angle_rad / m.position.to_si)
                 if m.status is not None:
-                    _put(registers, m.status.address, self._status(m.status, "servo", False))
+                    _put(registers, m.status.address, self._status(m.status, "servo", False, address, count))
             return self._read(registers, address, count)
 
     def _servo_write(self, registers: dict[int, int], address: int,
@@ -245,11 +292,24 @@ async def serve(emulator: Emulator, host: str, port: int, stop: asyncio.Event,
     """Serve until `stop` is set; `on_ready(bound_port)` once listening."""
     server = ModbusTcpServer(emulator.units(), host, port, idle_timeout_s=idle_timeout_s)
     bound = await server.start()
+    ticker = asyncio.create_task(_keep_time(emulator, stop))
     try:
         on_ready(bound)
         await stop.wait()
     finally:
+        ticker.cancel()
         await server.close()
+
+
+async def _keep_time(emulator: Emulator, stop: asyncio.Event) -> None:
+    """Tick the emulator every TICK_S, telling it when each tick was due."""
+    due = time.monotonic()
+    while not stop.is_set():
+        due += TICK_S
+        await asyncio.sleep(max(0.0, due - time.monotonic()))
+        emulator.tick(due)
+        if time.monotonic() - due > TICK_S:
+            due = time.monotonic()   # held up: do not fire the missed ticks in a burst
 
 
 class _Handle(abc.ABC):

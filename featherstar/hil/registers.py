@@ -13,7 +13,9 @@ Map file layout (see the shipped maps for complete examples):
     [value]    loadcell, required: a number field (below), unit kg | g | N
     [setpoint] servo, required: number field written with function code 16, unit rad | deg
     [position] servo, optional read-back: number field, unit rad | deg
-    [status]   optional: address, stable_bit / overload_bit / error_bit (0-15, each optional)
+    [status]   optional: address, stable_bit / overload_bit / error_bit / lag_bit (0-15, each
+               optional). lag_bit: an emulated device's model fell behind real time since the
+               status was last read (featherstar emulate sets it; real transmitters have none)
     [tare]     loadcell, optional: address, value (written with function code 6)
     [enable]   servo, optional: address, value (written on every new connection)
 
@@ -90,6 +92,7 @@ class StatusField:
     stable_bit: int | None = None
     overload_bit: int | None = None
     error_bit: int | None = None
+    lag_bit: int | None = None
 
 
 @dataclass(frozen=True)
@@ -97,6 +100,7 @@ class Status:
     stable: bool = True
     overload: bool = False
     error: bool = False
+    lagging: bool = False    # an emulator's plant fell behind real time since the last read
 
 
 @dataclass(frozen=True)
@@ -226,9 +230,9 @@ def _number_field(r: _Reader, section: str, table: dict[str, Any], kind: str,
 
 
 def _status_field(r: _Reader, table: dict[str, Any], base: int) -> StatusField:
-    r.check_keys("status", table, {"address", "stable_bit", "overload_bit", "error_bit"})
-    bits = {k: r.integer("status", table, k, 0, 15)
-            for k in ("stable_bit", "overload_bit", "error_bit")}
+    names = ("stable_bit", "overload_bit", "error_bit", "lag_bit")
+    r.check_keys("status", table, {"address", *names})
+    bits = {k: r.integer("status", table, k, 0, 15) for k in names}
     used = [b for b in bits.values() if b is not None]
     if len(used) != len(set(used)):
         raise r.fail("[status]", f"two meanings share one bit: {bits}")

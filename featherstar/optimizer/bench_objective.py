@@ -6,7 +6,8 @@ close left it), then runs settling plus measured periods in real time through th
 
 - a step started more than `featherstar.cosim.validity.MAX_LATE_S` (0.05 s) late (a stall), or
 - more than `featherstar.cosim.validity.MAX_MISS_FRACTION` (10 %) of the steps missed their deadline, or
-- a device needed a recovery (a data gap) or reconnected, or
+- a device needed a recovery (a data gap) or reconnected, or reported its plant behind real
+  time (an emulator's status lag bit), or
 - the master excluded a period of the measured window or called the run incomplete, or
 - the measured window has no negative thrust (TR infinite: the load cell tares at the start of
   every run, so a feather still moving from the last run offsets the whole recording).
@@ -55,6 +56,8 @@ def discard_reasons(run: BenchRun) -> list[str]:
         reasons.append(f"{s['gaps']} data gap(s)")
     if s.get("reconnects", 0):
         reasons.append(f"{s['reconnects']} device reconnect(s)")
+    if s.get("lags", 0):
+        reasons.append(f"{s['lags']} report(s) of the device's plant behind real time")
     invalid = (s.get("validity") or {}).get("invalid_periods") or []
     if invalid:
         reasons.append(f"{len(invalid)} measured period(s) excluded: {invalid[0]['reasons'][0]}")
@@ -94,7 +97,7 @@ class BenchObjective:
         which may change when a device is restarted)."""
         return {"scene": self.scene, "overrides": dict(self.overrides), "rest_s": self.rest_s,
                 "discard_limits": {"max_late_s": MAX_LATE_S, "max_miss_fraction": MAX_MISS_FRACTION,
-                                   "gaps": 0, "reconnects": 0, "excluded_periods": 0}}
+                                   "gaps": 0, "reconnects": 0, "lags": 0, "excluded_periods": 0}}
 
 
 @dataclass(frozen=True)

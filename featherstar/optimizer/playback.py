@@ -5,8 +5,15 @@ commanded stroke through a servo model, so the fitted coefficients are the feath
 mix of feather and servo errors. The feather needs the root's rate and acceleration too (the
 added-mass force is proportional to the acceleration); differentiating a quantised, sampled
 angle twice would amplify its noise by 1/dt², so the angle is fitted by a quintic smoothing
-spline (continuous acceleration) whose residual matches the read-back's noise,
-`ANGLE_NOISE_RAD` (a 0.01° register, sampled with ~1 ms of timing jitter at ~5 rad/s).
+spline (continuous acceleration) whose residual matches the read-back's noise, estimated from
+the recording itself (`angle_noise_rad`: the robust spread of third differences, which a smooth
+motion sampled at a few ms hardly has). A fixed smoothing is wrong both ways: too loose and the
+servo's sharp starts and stops are rounded off (a 2 mrad residual misses the rate by 0.2 rad/s
+and the acceleration by 20 rad/s² over a 1 s stroke), too tight and the noise is differentiated.
+
+A recording starts with the feather at rest (the load cell was tared at t = 0), so the spline
+is fitted with the root held still before the first sample: otherwise the free end of the
+spline invents a rate and acceleration at t = 0.
 """
 from __future__ import annotations
 
@@ -20,15 +27,34 @@ from ..cosim.block import Port
 
 from .errors import OptimizerError
 
-ANGLE_NOISE_RAD = 2e-3
+# The least noise assumed: a 0.001° read-back register, or an angle simulated to a tolerance.
+MIN_ANGLE_NOISE_RAD = 1e-5
+REST_PADDING_S = 0.1     # root held still this long before a recording (it starts at rest)
 
 
-def angle_spline(time_s: np.ndarray, angle_rad: np.ndarray, noise_rad: float = ANGLE_NOISE_RAD) -> UnivariateSpline:
-    """The smoothing spline through a recorded angle (k = 5, residual ≈ noise_rad per sample)."""
+def angle_noise_rad(angle_rad: np.ndarray) -> float:
+    """The read-back's noise sd from the recording: MAD of third differences / sqrt(20) (white
+    noise of sd s has third differences of sd s·sqrt(20)), at least MIN_ANGLE_NOISE_RAD."""
+    third = np.diff(np.asarray(angle_rad, dtype=float), 3)
+    if third.size == 0:
+        return MIN_ANGLE_NOISE_RAD
+    return max(float(np.median(np.abs(third))) / 0.6745 / np.sqrt(20.0), MIN_ANGLE_NOISE_RAD)
+
+
+def angle_spline(time_s: np.ndarray, angle_rad: np.ndarray, noise_rad: float | None = None) -> UnivariateSpline:
+    """The smoothing spline through a recorded angle that starts at rest (k = 5, residual ≈
+    noise_rad per sample; default: estimated by `angle_noise_rad`)."""
     time_s, angle_rad = np.asarray(time_s, dtype=float), np.asarray(angle_rad, dtype=float)
     if len(time_s) < 8 or not np.all(np.diff(time_s) > 0):
         raise OptimizerError("a recorded angle needs at least 8 samples at increasing times")
-    return UnivariateSpline(time_s, angle_rad, k=5, s=len(time_s) * noise_rad**2)
+    if noise_rad is None:
+        noise_rad = angle_noise_rad(angle_rad)
+    dt = float(np.median(np.diff(time_s)))
+    n_rest = max(1, int(round(REST_PADDING_S / dt)))
+    rest_s = time_s[0] - dt * np.arange(n_rest, 0, -1)
+    t = np.concatenate([rest_s, time_s])
+    a = np.concatenate([np.full(n_rest, angle_rad[0]), angle_rad])
+    return UnivariateSpline(t, a, k=5, s=len(t) * noise_rad**2)
 
 
 class RecordedRoot:
