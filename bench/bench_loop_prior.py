@@ -15,10 +15,10 @@
    never gets there counts as budget + 1 (listed as `null`).
 
 The flat plate, not the feather FMUs, behind the registers: the emulator must step its plant in
-real time, and on a shared 2-core machine under load (load average 6-10 while this was written)
-the FMU plant fell behind: runs with steps 0.3-0.8 s late were discarded by the dozen, and runs
-that passed measured TRs up to 13 for a plain feather whose simulation gives at most 1.2. The
-analytic plate costs nothing. On a loaded machine runs are discarded and studies pause; the bench then waits and
+real time, and when this bench was written (load average 6-10 on 2 cores) the FMU plant of the time
+(servo then feather, Gauss-Seidel at 1 ms, since replaced by a strongly coupled plant that flags
+lag) fell behind: runs with steps 0.3-0.8 s late were discarded by the dozen. The analytic plate
+costs nothing. On a loaded machine runs are discarded and studies pause; the bench then waits and
 resumes them (`resume=True`), as a user would, and counts the pauses. Writes bench_loop_prior.json and bench_loop_prior.png (best TR so far per study).
 """
 from __future__ import annotations
