@@ -58,7 +58,9 @@ PLANS: dict[str, Plan] = {
     "me_weak_accuracy.py": Plan((), expected_s=30),
     # minutes each even when reduced, or real time on the emulator: full runs only
     "flap_mechanisms.py": Plan(None, expected_s=240),
+    "wake_memory.py": Plan(None, expected_s=600),   # its own --quick takes ~7 min
     "bench_loop_prior.py": Plan(None, expected_s=300),
+    "bench_calibration.py": Plan(None, expected_s=300),
 }
 
 
