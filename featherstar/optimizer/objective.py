@@ -38,16 +38,13 @@ class Objective(Protocol):
 
 
 def _master_api() -> tuple[Any, Any] | None:
-    """(run_scene, load_scene) from featherstar.cosim's public surface, or from featherstar.cosim.run while the package
-    does not re-export them yet; None when the master is not installed."""
-    for module in ("cosim", "featherstar.cosim.run"):
-        try:
-            api = importlib.import_module(module)
-        except ImportError:
-            continue
-        if hasattr(api, "run_scene") and hasattr(api, "load_scene"):
-            return api.run_scene, api.load_scene
-    return None
+    """(run_scene, load_scene) of the FMU master (featherstar.cosim.run); None when it cannot be
+    imported (a broken install: the optimizer's pure parts still work)."""
+    try:
+        api = importlib.import_module("featherstar.cosim.run")
+    except ImportError:
+        return None
+    return api.run_scene, api.load_scene
 
 
 def master_available() -> bool:
