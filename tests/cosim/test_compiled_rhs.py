@@ -138,3 +138,19 @@ def test_error_from_the_derivatives_stops_naming_block_function_and_time(decay_l
     assert "GetContinuousStateDerivatives" in str(exc)
     assert 0.0 < exc.t_s < 1.0
     assert unit.memory.calls == 40   # nothing was called after the failing op
+
+
+def test_without_gcc_the_python_path_runs_and_says_why(monkeypatch):
+    import featherstar.cosim.compiled_rhs as compiled_rhs
+    from featherstar.cosim.native import NativeBuildError
+
+    def no_gcc(*args, **kwargs):
+        raise NativeBuildError("cannot run gcc: [Errno 2] No such file or directory: 'gcc'")
+
+    monkeypatch.setattr(compiled_rhs, "shared_library", no_gcc)
+    monkeypatch.setattr(compiled_rhs, "casadi_library", no_gcc)
+    scene = make_scene(OSCILLATOR)
+    fallback = run_scene(scene)
+    assert fallback.summary["stats"]["rhs"] == "python (cannot run gcc: [Errno 2] No such file or directory: 'gcc')"
+    monkeypatch.undo()
+    _same_runs(fallback, run_scene(scene))
