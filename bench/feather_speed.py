@@ -16,7 +16,8 @@ In one run, on one machine (compare the ratios: a shared machine is noisy):
    the change: Python right-hand side, dense model; in a child process, timed inside it), in
    rotating order, `--repeats` times each, median wall times. TR of each; the old model's chaos band is the range
    of its TR at rtol 1e-6, 1e-7 and 1e-8 (the flapped feather is chaotic: TRs of accurate runs
-   scatter, and a TR inside the band is as good as the old model's own).
+   scatter, and a TR inside the band is as good as the old model's own), and today's model's band
+   over the same tolerances beside it (the two agree if they converge to the same TR).
 4. 6-period run time of the kinematic scene through the master against N (chordwise and plain).
 5. Where the integrator's steps go: steps and RHS evaluations of the chordwise scene with one
    suspect relaxed at a time (flap-stop stiffness, smoothing and damping, bending stiffness, the
@@ -258,6 +259,10 @@ def head_to_head(new_fmu: Path, old_fmu: Path, repeats: int, old: Path, cache: P
     band = [timed_run(f"dense rtol {rtol:g}", lambda: run_scene(scene_with_fmu(old_fmu, rtol)))
             for rtol in (1e-6, 1e-7, 1e-8)]
     trs = [b["thrust_ratio"] for b in band]
+    # today's model over the same tolerances: do the two converge to the same TR?
+    new_band = [timed_run(f"chain rtol {rtol:g}", lambda: run_scene(scene_with_fmu(new_fmu, rtol, extra=SAME_PHYSICS)))
+                for rtol in (1e-6, 1e-7, 1e-8)]
+    new_trs = [b["thrust_ratio"] for b in new_band]
     new, mono, old_fmu_new_master, old_everything = (summary[label]["median_wall_s"] for label in labels)
     new_tr = summary[labels[0]]["thrust_ratio"]
     return {"runs": summary, "old_chaos_band": {"runs": band, "thrust_ratio_min": min(trs), "thrust_ratio_max": max(trs)},
@@ -266,7 +271,10 @@ def head_to_head(new_fmu: Path, old_fmu: Path, repeats: int, old: Path, cache: P
             "master_over_old_master": new / old_everything,
             # the model's share alone: the old FMU through today's master
             "master_over_old_fmu_on_new_master": new / old_fmu_new_master,
-            "new_tr_in_old_band": min(trs) <= new_tr <= max(trs)}
+            "new_tr_in_old_band": min(trs) <= new_tr <= max(trs),
+            "new_chaos_band": {"runs": new_band, "thrust_ratio_min": min(new_trs), "thrust_ratio_max": max(new_trs)},
+            "bands_overlap": min(new_trs) <= max(trs) and min(trs) <= max(new_trs),
+            "tr_difference_at_rtol_1e-8": new_trs[-1] - trs[-1]}
 
 
 def run_time_vs_n(sizes: Sequence[int], fmus: dict[tuple[str, int], Path]) -> list[dict[str, Any]]:
@@ -410,7 +418,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     h = result["head_to_head"]
     log(f"master/monolithic {h['master_over_monolithic']:.2f}, master/(old master + old FMU) "
         f"{h['master_over_old_master']:.2f}, master/(old FMU on today's master) "
-        f"{h['master_over_old_fmu_on_new_master']:.2f}, TR in the old band: {h['new_tr_in_old_band']}; wrote {json_path}")
+        f"{h['master_over_old_fmu_on_new_master']:.2f}, TR in the old band: {h['new_tr_in_old_band']}, bands overlap: "
+        f"{h['bands_overlap']}, TR difference at rtol 1e-8: {h['tr_difference_at_rtol_1e-8']:.2g}; wrote {json_path}")
     return 0
 
 
