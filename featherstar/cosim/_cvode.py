@@ -205,7 +205,9 @@ class CVodeIntegrator:
             return self._rhs_py(t, N_VGetArrayPointer(y), N_VGetArrayPointer(ydot))
         except BaseException as exc:  # never let an exception cross the C boundary
             self.callback_exception = exc
-            return -1
+            # an FMI Discard: CVODE retries with a smaller step (the exception is kept in case it
+            # gives up, and is reported then)
+            return 1 if getattr(exc, "recoverable", False) else -1
 
     def _roots(self, t, y, gout, _user):
         try:
@@ -221,9 +223,9 @@ class CVodeIntegrator:
 
     # stepping --------------------------------------------------------------------------------
     def _check(self, flag: int, t: float) -> int:
+        exc = self.callback_exception
+        self.callback_exception = None   # after a success only a recovered Discard can be left here
         if flag < 0:
-            exc = self.callback_exception
-            self.callback_exception = None
             if exc is None and self._native is not None and flag in RHS_FAILURES:
                 exc = self._native.failure()
             if exc is not None:

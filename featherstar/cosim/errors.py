@@ -60,6 +60,8 @@ class StepError(FeatherstarError):
         self.message = message
         self.partial: Any = None  # a RunResult with what was computed up to the failure
         self.interrupted: str | None = None  # the signal's name when stopped from outside
+        # FMI Discard inside a right-hand side: the integrator may retry with a smaller step
+        self.recoverable = False
         text = f"block '{block}' at t={t_s:.6g} s"
         if function:
             text += f" in {function}"

@@ -154,3 +154,39 @@ def test_without_gcc_the_python_path_runs_and_says_why(monkeypatch):
     assert fallback.summary["stats"]["rhs"] == "python (cannot run gcc: [Errno 2] No such file or directory: 'gcc')"
     monkeypatch.undo()
     _same_runs(fallback, run_scene(scene))
+
+
+class PythonDecayUnit(DecayUnit):
+    """The same unit through the Python path: its calls raise the error an FMU unit raises."""
+
+    def status_error(self, function: str, t: float, status: int) -> StepError:
+        error = StepError(self.name, t, f"{function} returned status {status}", function=function)
+        error.recoverable = status == 2
+        return error
+
+    def set_time(self, t: float) -> None:
+        self.library.set_time(ctypes.byref(self.memory), c_double(t))
+
+    def set_states(self, address: int) -> None:
+        self.library.set_states(ctypes.byref(self.memory), ctypes.c_void_p(address), ctypes.c_size_t(1))
+
+    def get_derivatives(self, address: int) -> None:
+        status = self.library.get_derivatives(ctypes.byref(self.memory), ctypes.c_void_p(address),
+                                              ctypes.c_size_t(1))
+        if status > 1:
+            raise self.status_error("GetContinuousStateDerivatives", self.t, status)
+
+
+@pytest.mark.parametrize("status, survives", [(2, True), (3, False)], ids=["discard", "error"])
+def test_the_python_path_answers_statuses_the_same_way(decay_library, status, survives):
+    unit = PythonDecayUnit(decay_library, bad_call=40, bad_status=status)
+    context = Context()
+    group = OdeGroup(None, context, [unit], [], 0.0, method="adams", rtol=1e-8, atol=1e-10, compiled=False)
+    assert context.stats["rhs"].startswith("python")
+    if survives:
+        group.cv.advance(1.0)
+        assert unit.memory.calls > 40 and group.cv.y[0] == pytest.approx(math.exp(-1.0), rel=1e-6)
+    else:
+        with pytest.raises(StepError, match="GetContinuousStateDerivatives"):
+            group.cv.advance(1.0)
+        assert unit.memory.calls == 40
