@@ -226,21 +226,15 @@ def old_master_run(old: Path, old_fmu: Path, cache: Path) -> dict[str, Any]:
     return {"label": f"old master + dense FMU ({OLD_COMMIT})", **row}
 
 
-class _Timed:
-    """A contender that times itself (the old master runs in a child process)."""
-
-    def __init__(self, run) -> None:
-        self.run = run
-
-
 def head_to_head(new_fmu: Path, old_fmu: Path, repeats: int, old: Path, cache: Path) -> dict[str, Any]:
     same = {f"feather.{k}": v for k, v in SAME_PHYSICS.items()}
+    # each contender returns its row (wall time, TR, steps); the old master times itself in its child
     runs = {
-        "master (chain FMU)": lambda: run_scene(scene_with_fmu(new_fmu, extra=SAME_PHYSICS)),
-        "monolithic compiled (chain)": lambda: run_monolithic("kinematic", same, rtol=1e-6, atol=1e-8, method="adams",
-                                                              compiled=True),
-        "master (dense FMU, 32dc597)": lambda: run_scene(scene_with_fmu(old_fmu)),
-        f"old master + dense FMU ({OLD_COMMIT})": _Timed(lambda: old_master_run(old, old_fmu, cache)),
+        "master (chain FMU)": lambda: timed_run("master", lambda: run_scene(scene_with_fmu(new_fmu, extra=SAME_PHYSICS))),
+        "monolithic compiled (chain)": lambda: timed_run("monolithic", lambda: run_monolithic(
+            "kinematic", same, rtol=1e-6, atol=1e-8, method="adams", compiled=True)),
+        "master (dense FMU, 32dc597)": lambda: timed_run("dense", lambda: run_scene(scene_with_fmu(old_fmu))),
+        f"old master + dense FMU ({OLD_COMMIT})": lambda: old_master_run(old, old_fmu, cache),
     }
     run_monolithic("kinematic", same, rtol=1e-6, atol=1e-8, method="adams", compiled=True)  # compile once, untimed
     samples: dict[str, list[dict[str, Any]]] = {label: [] for label in runs}
@@ -248,8 +242,7 @@ def head_to_head(new_fmu: Path, old_fmu: Path, repeats: int, old: Path, cache: P
     for r in range(repeats):
         shift = r % len(labels)
         for label in labels[shift:] + labels[:shift]:  # rotate the order: drift hits all alike
-            run = runs[label]
-            samples[label].append(run.run() if isinstance(run, _Timed) else timed_run(label, run))
+            samples[label].append(runs[label]())
             last = samples[label][-1]
             log(f"  {label:30s} {last['wall_s']:6.2f} s  TR {last['thrust_ratio']:.3f}  steps {last['steps']}")
     summary = {label: {"median_wall_s": statistics.median(s["wall_s"] for s in rows),

@@ -96,6 +96,7 @@ class _Builder:
         self.ops: list[_Op] = []
         self.explain: list[Callable[[int, float], BaseException]] = []
         self.keep: list[Any] = []
+        self.evaluated: set[str] = set()   # time-function units whose op is already in the program
 
     def add(self, explain: Callable[[int, float], BaseException], **fields: Any) -> None:
         self.ops.append(_Op(**fields))
@@ -105,6 +106,10 @@ class _Builder:
         arr = (ctype * max(len(values), 1))(*values)
         self.keep.append(arr)
         return ctypes.addressof(arr)
+
+    def copy(self, src: int, dst: int) -> None:
+        """*dst = *src (one float64), which cannot fail."""
+        self.add(_copies_cannot_fail, kind=COPY, src=src, dst=dst)
 
     def fmi(self, unit: Unit, function: str) -> Callable[[int, float], BaseException]:
         def explain(status: int, t: float) -> BaseException:
@@ -183,49 +188,42 @@ def _translate(b: _Builder, step: Step, native: Callable[[Unit], NativeCalls | N
     calls = native(u) if u is not None else None
     idx = list(step.indices)
     if step.kind == "set" and calls is not None and all(i in calls.inputs for i in idx):
-        sources = [(i, src, k) for i, (src, k) in zip(idx, step.sources)]
+        sources = step.sources
         for i, src, k in sources:
-            b.add(_copies_cannot_fail, kind=COPY, src=ctypes.addressof(src.outbuf) + 8 * k,
-                  dst=ctypes.addressof(u.inbuf) + 8 * i)
-        values = _contiguous(b, u.inbuf, idx)
+            b.copy(ctypes.addressof(src.outbuf) + 8 * k, ctypes.addressof(u.inbuf) + 8 * i)
+        values, pairs = _packed(b, u.inbuf, idx)
+        for buffer_address, packed_address in pairs:   # before the call: gather into the packed array
+            b.copy(buffer_address, packed_address)
         fmi = b.fmi(u, "SetFloat64 (inputs)" if calls.fmi3 else "SetReal (inputs)")
 
-        def explain(status: int, t: float, fmi: Callable = fmi, sources: list = sources) -> BaseException:
+        def explain(status: int, t: float, fmi: Callable = fmi) -> BaseException:
             return non_finite_origin(u, sources, t) or fmi(status, t)
         b.add(explain, kind=_SET_OF[calls.fmi3], fn=calls.set_float64, instance=calls.instance,
               vr=b.array(c_uint, [calls.value_refs_in[i] for i in idx]), n=len(idx), values=values)
         return
     if step.kind == "get" and calls is not None and all(i in calls.outputs for i in idx):
-        if idx == list(range(idx[0], idx[0] + len(idx))):
-            values = ctypes.addressof(u.outbuf) + 8 * idx[0]
-            scatter = []
-        else:
-            values = b.array(c_double, [0.0] * len(idx))
-            scatter = [(values + 8 * j, ctypes.addressof(u.outbuf) + 8 * i) for j, i in enumerate(idx)]
+        values, pairs = _packed(b, u.outbuf, idx)
         b.add(b.fmi(u, "GetFloat64 (outputs)" if calls.fmi3 else "GetReal (outputs)"), kind=_GET_OF[calls.fmi3],
               fn=calls.get_float64, instance=calls.instance,
               vr=b.array(c_uint, [calls.value_refs_out[i] for i in idx]), n=len(idx), values=values)
-        for src, dst in scatter:
-            b.add(_copies_cannot_fail, kind=COPY, src=src, dst=dst)
+        for buffer_address, packed_address in pairs:   # after the call: scatter into the buffer
+            b.copy(packed_address, buffer_address)
         return
     if step.kind == "get" and u is not None and u.name in time_functions:
-        fn, parameters = time_functions[u.name]
-        if fn is not None:   # one evaluation gives every output: later reads find them in outbuf
-            _casadi_op(b, u, fn, parameters)
-            time_functions[u.name] = (None, parameters)
+        if u.name not in b.evaluated:   # one evaluation gives every output: later reads find them in outbuf
+            _casadi_op(b, u, *time_functions[u.name])
+            b.evaluated.add(u.name)
         return
     b.python(step.run, u.name if u is not None else "algebraic loop")
 
 
-def _contiguous(b: _Builder, buf: ctypes.Array, idx: list[int]) -> int:
-    """Address of buf[idx] as one contiguous array: in place when idx is a run, else a temporary
-    filled by copies (ops added here)."""
+def _packed(b: _Builder, buf: ctypes.Array, idx: list[int]) -> tuple[int, list[tuple[int, int]]]:
+    """Address of buf[idx] as one contiguous array, and the (buffer, packed) address pairs to copy
+    between them: in place when idx is a run (no copies), else a temporary array."""
     if idx == list(range(idx[0], idx[0] + len(idx))):
-        return ctypes.addressof(buf) + 8 * idx[0]
+        return ctypes.addressof(buf) + 8 * idx[0], []
     temp = b.array(c_double, [0.0] * len(idx))
-    for j, i in enumerate(idx):
-        b.add(_copies_cannot_fail, kind=COPY, src=ctypes.addressof(buf) + 8 * i, dst=temp + 8 * j)
-    return temp
+    return temp, [(ctypes.addressof(buf) + 8 * i, temp + 8 * j) for j, i in enumerate(idx)]
 
 
 def _casadi_op(b: _Builder, u: Unit, fn: Any, parameters: list[float]) -> None:

@@ -52,6 +52,7 @@ class StepError(FeatherstarError):
         *,
         function: str = "",
         cause: str = "",
+        recoverable: bool = False,
     ) -> None:
         self.block = block
         self.t_s = t_s
@@ -61,7 +62,7 @@ class StepError(FeatherstarError):
         self.partial: Any = None  # a RunResult with what was computed up to the failure
         self.interrupted: str | None = None  # the signal's name when stopped from outside
         # FMI Discard inside a right-hand side: the integrator may retry with a smaller step
-        self.recoverable = False
+        self.recoverable = recoverable
         text = f"block '{block}' at t={t_s:.6g} s"
         if function:
             text += f" in {function}"

@@ -81,11 +81,9 @@ class FmuUnit(Unit):
         label = STATUS[status] if isinstance(status, int) and 0 <= status < len(STATUS) else status
         said = self.fmu_said()
         message = f"{function} returned status {label}" + (f"; the FMU logged: {said}" if said else "")
-        error = StepError(self.name, t, message, function=function,
-                          cause=cause or "the FMU rejected the call (invalid inputs or parameters, or the "
-                          "model left its valid range)")
-        error.recoverable = status == 2   # Discard
-        return error
+        return StepError(self.name, t, message, function=function, recoverable=status == 2,   # Discard
+                         cause=cause or "the FMU rejected the call (invalid inputs or parameters, or the "
+                         "model left its valid range)")
 
     def status_error(self, function: str, t: float, status: int) -> StepError:
         return self._fail(function, t, status)

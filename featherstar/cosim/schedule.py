@@ -102,7 +102,7 @@ class Step:
     kind: str
     unit: Unit | None
     indices: tuple[int, ...]
-    sources: tuple[tuple[Unit, int], ...]
+    sources: tuple[tuple[int, Unit, int], ...]   # (input index, driving unit, its output index)
     run: Callable[[], None]
 
 
@@ -190,8 +190,8 @@ def schedule_steps(system: System, context: Context, units: Sequence[Unit], out_
         idx = [n[2] for n in pending]
         u = system.units[b]
         if kind == "in":
-            sources = tuple((system.units[src_of[(b, i)][0]], src_of[(b, i)][1]) for i in idx)
-            ops.append(Step("set", u, tuple(idx), sources, setter_op(system, u, idx, src_of)))
+            ops.append(Step("set", u, tuple(idx), input_sources(system, u, idx, src_of),
+                            setter_op(system, u, idx, src_of)))
         else:
             ops.append(Step("get", u, tuple(idx), (), u.output_getter(idx)))
         pending.clear()
@@ -211,16 +211,17 @@ def schedule_steps(system: System, context: Context, units: Sequence[Unit], out_
     return ops
 
 
+def input_sources(system: System, u: Unit, idx: Sequence[int], src_of: dict) -> tuple[tuple[int, Unit, int], ...]:
+    """(input index, driving unit, its output index) for inputs `idx` of u."""
+    return tuple((i, system.units[src_of[(u.name, i)][0]], src_of[(u.name, i)][1]) for i in idx)
+
+
 def setter_op(system: System, u: Unit, idx: list[int], src_of: dict) -> Callable[[], None]:
     """An op that copies the driving outputs into inputs `idx` of u and pushes them to its model."""
-    gathers = []
-    for i in idx:
-        sb, k = src_of[(u.name, i)]
-        gathers.append((i, system.units[sb].outbuf, k))
+    sources = input_sources(system, u, idx, src_of)
+    gathers = [(i, src.outbuf, k) for i, src, k in sources]
     raw_push = u.input_setter(idx)
     inbuf = u.inbuf
-
-    sources = [(i, system.units[src_of[(u.name, i)][0]], src_of[(u.name, i)][1]) for i in idx]
 
     def push() -> None:
         try:

@@ -337,13 +337,13 @@ class StrongCoupling:
         system, context, m = self.system, self.context, self.system.master
         watched = watched_out_nodes(system, self.recording)
         rhs_steps = schedule_steps(system, context, self.units, set(), skip_static=True)
-        self.rhs_ops = [step.run for step in rhs_steps]
         rec_steps = schedule_steps(system, context, self.units, watched, skip_static=True)
         self.rec_ops = [step.run for step in rec_steps]
         self.init_ops = topo_schedule(system, context, self.units, watched)
         self.t_end = t_end
         group = self.group = OdeGroup(self.system, self.context, self.units, rhs_steps, t0, method=m.method,
                                       rtol=m.rtol, atol=m.atol, max_step=m.max_step_s, compiled=m.compiled_rhs)
+        self.rhs_ops = group.ops
         # the output points as one C call too, when the right-hand side compiled
         self.record_program = None
         if context.stats.get("rhs") == "compiled":

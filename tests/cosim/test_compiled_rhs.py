@@ -160,9 +160,8 @@ class PythonDecayUnit(DecayUnit):
     """The same unit through the Python path: its calls raise the error an FMU unit raises."""
 
     def status_error(self, function: str, t: float, status: int) -> StepError:
-        error = StepError(self.name, t, f"{function} returned status {status}", function=function)
-        error.recoverable = status == 2
-        return error
+        return StepError(self.name, t, f"{function} returned status {status}", function=function,
+                         recoverable=status == 2)
 
     def set_time(self, t: float) -> None:
         self.library.set_time(ctypes.byref(self.memory), c_double(t))
