@@ -15,12 +15,16 @@
    coefficients and with the defaults.
 
 `--offline`: the same plant (featherstar.hil.fmu_plant.FmuPlant, the emulator's, with the same
-hidden coefficients) driven without real time exactly as the bench client drives it (the stroke
-sampled every STEP_S, rate-limited to the servo's 6.2 rad/s, applied one step late, the plant
-read at the step's end), the angle quantised to the servo map's 0.01°, 5 mN of noise on the
-thrust, and the load cell tared 0.3 s after the plant starts (when a client connecting to a
-fresh emulator does): for a machine too loaded to keep 250 Hz, where every real-time run of a
-flapped feather is discarded.
+hidden coefficients) driven without real time exactly as the bench client drives it (at each
+STEP_S step's start, the stroke at the step's end, rate-limited to the servo's 6.2 rad/s, written;
+the servo angle and the load cell's mean force over the step before read then and stamped at
+the step's end), the angle quantised to the servo map's 0.01°, 5 mN of noise on the thrust, and
+the load cell tared 0.3 s after the plant starts (when a client connecting to a fresh emulator
+does): for a machine too loaded to keep 250 Hz, where every real-time run of a flapped feather
+is discarded.
+
+The unseen stroke is predicted by the testbed simulation with the bench's command path
+(`featherstar.hil.hardware.bench_command`), as a prediction of a bench measurement must be.
 
 A run the bench study would discard (featherstar.optimizer.bench_objective) is repeated, up to
 ATTEMPTS times, and counted. Writes bench_calibration_<morphology>.json and .png (measured vs
@@ -50,6 +54,7 @@ from featherstar.cosim.stroke import root_motion  # noqa: E402
 from featherstar.hil.blocks import MG996R_RATE_RAD_S  # noqa: E402
 from featherstar.hil.fmu_plant import FmuPlant  # noqa: E402
 from featherstar.hil.emulator import spawn_emulator  # noqa: E402
+from featherstar.hil.hardware import bench_command  # noqa: E402
 from featherstar.optimizer.bench_objective import discard_reasons  # noqa: E402
 from featherstar.optimizer.bench_run import BenchFault, run_on_bench  # noqa: E402
 from featherstar.optimizer.calibration import calibrate  # noqa: E402
@@ -86,19 +91,24 @@ def _offline_run(morphology: str, overrides: dict, hidden: dict, seed: int) -> d
     rng = np.random.default_rng(seed)
     try:
         plant.advance(TARE_AFTER_S)
-        tare_N = plant.thrust_N
-        command = pending = 0.0
+        tare_N = plant.thrust_N                 # the plant starts at rest: the force is steady
+        command = 0.0                           # the servo block starts at its safe position
         time_s, angle, thrust = [0.0], [plant.angle_rad], [0.0]
+        impulse_Ns, reading_N = plant.impulse_Ns, plant.thrust_N
         for k in range(round(t_end_s / STEP_S)):
-            target = root_motion(stroke, k * STEP_S)[0]
+            # Gauss-Seidel at the step's start: the stroke at its end, rate-limited, written now;
+            # the devices read now (the load cell: its mean force over the step before) and the
+            # readings stamped at the step's end, as the master records them
             limit = MG996R_RATE_RAD_S * STEP_S
-            command = min(max(target, command - limit), command + limit)
-            plant.set_setpoint_rad(pending)     # written at the end of the step it was computed in
-            pending = command
-            plant.advance(STEP_S)
+            command = min(max(root_motion(stroke, (k + 1) * STEP_S)[0], command - limit), command + limit)
+            plant.set_setpoint_rad(command)
+            if k:
+                reading_N = (plant.impulse_Ns - impulse_Ns) / STEP_S
+            impulse_Ns = plant.impulse_Ns
             time_s.append((k + 1) * STEP_S)
             angle.append(plant.angle_rad)
-            thrust.append(plant.thrust_N)
+            thrust.append(reading_N)
+            plant.advance(STEP_S)
     finally:
         plant.close()
     time_s = np.array(time_s)
@@ -189,7 +199,8 @@ def calibration(morphology: str, offline: bool) -> tuple[dict, object]:
         measured = _clean_run(morphology, {**UNSEEN, **MEASURE}, hidden, 50, discarded).summary
     print("unseen stroke measured; fitting (minutes for a flapped feather)...", flush=True)
     result = calibrate(recordings, "testbed", {"feather.morphology": morphology}, fit, window_s=WINDOW_S)
-    simulated = {"feather.morphology": morphology, "controller.period_s": PERIOD_S, **UNSEEN, **MEASURE}
+    command = {f"controller.{k}": v for k, v in bench_command(STEP_S).items()}
+    simulated = {"feather.morphology": morphology, "controller.period_s": PERIOD_S, **UNSEEN, **MEASURE, **command}
     predicted = run_scene("testbed", {**simulated, **result.parameter_set()}).summary
     default = run_scene("testbed", simulated).summary
 

@@ -62,6 +62,39 @@ class MemorylessBlock(Block, Protocol):
         """Output values at time t_s for the given input values (no side effects)."""
 
 
+class TimeSource:
+    """Base of a memoryless block without inputs, whose outputs are a function of time only (a
+    stroke, a recorded root motion): subclasses set `name` and `outputs` and implement
+    `evaluate`; the Block protocol's stepping is here, once."""
+
+    can_iterate = True
+    name: str
+    outputs: Mapping[str, Port]
+
+    def __init__(self) -> None:
+        self.inputs: dict[str, Port] = {}
+        self._t = 0.0
+
+    def evaluate(self, t_s: float, inputs: Mapping[str, float]) -> Mapping[str, float]:
+        raise NotImplementedError
+
+    def start(self, t0_s: float) -> None:
+        self._t = t0_s
+
+    def set_inputs(self, values: Mapping[str, float]) -> None:
+        if values:
+            raise ValueError(f"{self.name} has no inputs (got {', '.join(values)})")
+
+    def get_outputs(self) -> dict[str, float]:
+        return dict(self.evaluate(self._t, {}))
+
+    def do_step(self, t_s: float, h_s: float) -> None:
+        self._t = t_s + h_s
+
+    def close(self) -> None:
+        pass
+
+
 @runtime_checkable
 class RollbackBlock(Block, Protocol):
     """A block whose state can be saved and restored: needed by the adaptive weak master, which

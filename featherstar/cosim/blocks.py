@@ -29,7 +29,7 @@ from typing import Any, Hashable, Mapping
 from ..fmu_src.errors import FeatherstarError, ModelError
 
 from .block import Block, MemorylessBlock, Passivity, Port, RollbackBlock, can_iterate, passivity_by_convention
-from .controller import STROKE_KEYS, StrokeController, resolve_stroke
+from .controller import COMMAND_KEYS, STROKE_KEYS, StrokeController, resolve_command, resolve_stroke
 from .errors import SceneError
 from .feedthrough import model_feedthrough
 from .fmi_types import parameter_value
@@ -97,8 +97,8 @@ class StrokeKind(BlockKind):
     name = "stroke"
 
     def override(self, spec: BlockSpec, key: str, raw: Any) -> BlockSpec:
-        if key not in STROKE_KEYS:
-            raise SceneError(f"{_where(spec)} has no setting '{key}'; it has: {', '.join(STROKE_KEYS)}")
+        if key not in STROKE_KEYS + COMMAND_KEYS:
+            raise SceneError(f"{_where(spec)} has no setting '{key}'; it has: {', '.join(STROKE_KEYS + COMMAND_KEYS)}")
         value = parse_value(raw)
         if isinstance(value, (str, bool)):
             raise SceneError(f"{_where(spec)}: {key} = {raw!r} is not a number")
@@ -114,17 +114,20 @@ class StrokeKind(BlockKind):
                 raise SceneError(str(exc)) from None
             settings = {k: getattr(stroke, k) for k in ("t_up_s", "t_hold_up_s", "t_down_s", "t_hold_down_s",
                                                          "amplitude_deg")}
+            settings.update({k: v for source in (spec.settings, spec.overrides) for k, v in source.items()
+                             if k in COMMAND_KEYS})
             spec = dataclasses.replace(spec, settings=FrozenMap(settings), overrides=FrozenMap())
         return super().override_batch(spec, items)
 
     def resolve(self, spec: BlockSpec) -> ResolvedBlock:
         try:
             stroke = resolve_stroke(spec.settings, spec.overrides, _where(spec))
+            command = resolve_command(spec.settings, spec.overrides, _where(spec))
         except (ModelError, TypeError, ValueError) as exc:
             raise SceneError(str(exc)) from None
-        obj = StrokeController(spec.name, stroke)
+        obj = StrokeController(spec.name, stroke, command)
         return ResolvedBlock(spec, {}, dict(obj.outputs), memoryless=True, iterable=True, continuous=True,
-                             identity=("stroke", stroke), period_s=stroke.period_s, obj=obj, can_rollback=True,
+                             identity=("stroke", stroke, command), period_s=stroke.period_s, obj=obj, can_rollback=True,
                              stroke=stroke)
 
 

@@ -87,6 +87,9 @@ class MasterSpec:
                        the work its ports put in (featherstar.cosim.guards); 0 = no check.
     compiled_rhs       strong coupling: run the right-hand side as compiled C calls
                        (featherstar.cosim.compiled_rhs; needs gcc); false: the Python path.
+    start_at_rest      strong coupling: start from the state in which every continuous state's
+                       derivative is zero for the inputs at the start (a bench left alone:
+                       featherstar.cosim.rest), not from the models' start values.
     """
 
     coupling: str = "strong"
@@ -111,6 +114,7 @@ class MasterSpec:
     check_steps: bool = True
     passive_energy_factor: float = 2.0
     compiled_rhs: bool = True
+    start_at_rest: bool = False
 
     def check(self) -> list[str]:
         problems = []
@@ -134,6 +138,9 @@ class MasterSpec:
         if self.realtime and self.coupling == "strong":
             problems.append("master.realtime needs a weak coupling (jacobi or gauss-seidel): hardware "
                             "cannot be integrated inside one ODE")
+        if self.start_at_rest and self.coupling != "strong":
+            problems.append("master.start_at_rest needs master.coupling = strong: the state at rest is solved "
+                            "on the coupled ODE")
         if self.t_end_s == 0 and self.periods == 0:
             problems.append("master: set t_end_s or periods")
         return problems

@@ -25,6 +25,7 @@ from ._cvode import N_VGET_ARRAY_POINTER_ADDRESS, CVodeError, CVodeIntegrator
 from .compiled_rhs import compile_rhs
 from .context import Context, Recording
 from .errors import StepError
+from .rest import solve_rest
 from .schedule import Step, schedule_steps, topo_schedule
 from .system import System
 from .units import Unit
@@ -50,6 +51,9 @@ class OdeGroup:
         self.dummy = off == 0
         self.ops = [step.run for step in rhs_steps]
         self.event_units = [u for u in units if u.continuous and u.n_events > 0]
+        # Python blocks whose outputs jump at known instants (a sampled command): the solver
+        # stops and restarts there
+        self.clocked = [u for u in units if not u.continuous and u.next_time_event() is not None]
         self.n_events = sum(u.n_events for u in self.event_units)
         self.needs_completed = [u for u in units if u.continuous and u.needs_completed_step]
         self.discrete_units = [u for u in units if u.continuous and u.has_discrete_inputs]
@@ -150,7 +154,7 @@ class OdeGroup:
             op()
 
     def next_time_event(self) -> float:
-        times = [u.next_time_event() for u in self.units if u.continuous]
+        times = [u.next_time_event() for u in self.units if u.continuous] + [u.next_time_event() for u in self.clocked]
         times = [t for t in times if t is not None]
         return min(times) if times else math.inf
 
@@ -160,6 +164,11 @@ class OdeGroup:
         Every event-capable unit updates its discrete states first; then, in super-dense time,
         units whose discrete inputs changed (a discrete output of another unit moved) enter
         event mode again to take them, until nothing changes."""
+        eps = 1e-12 * max(1.0, abs(t))
+        for u in self.clocked:
+            due_at = u.next_time_event()
+            if due_at is not None and due_at <= t + eps:
+                u.time_event(t)
         self.set_point(t, self.cv.y_address)
         terminate = False
         for round_ in range(100):
@@ -350,6 +359,8 @@ class StrongCoupling:
             program = compile_rhs(context, group.timed, group.stateful, rec_steps, N_VGET_ARRAY_POINTER_ADDRESS)
             self.record_program = None if isinstance(program, str) else program
         self.consistent(t0)
+        if m.start_at_rest:
+            self._start_at_rest(t0)
         if group.discrete_units and group.discrete_inputs_pending(t0):
             # discrete inputs are taken in event mode before the start is recorded (values after the event)
             self.terminated = group.handle_event(t0)
@@ -367,6 +378,19 @@ class StrongCoupling:
         self.recording.check_rows()
         self.context.stats["states"] = 0 if group.dummy else group.n
         self.context.stats.setdefault("integrate_s", 0.0)
+
+    def _start_at_rest(self, t0: float) -> None:
+        """Replace the start values by the state at rest for the inputs at t0 (featherstar.cosim.rest)."""
+        group, m = self.group, self.system.master
+        if group.dummy:
+            return
+        names = [f"{u.name}.{s}" for u, _ in group.stateful
+                 for s in (u.state_names() or [f"x{i}" for i in range(u.n_states)])]
+        rest = solve_rest(group._rhs, t0, list(group.cv.y), m.rtol, m.atol, names)
+        group.cv.reinit(t0, rest.y.tolist())
+        self.consistent(t0)
+        self.context.stats["start_at_rest"] = {"iterations": rest.iterations, "evaluations": rest.evaluations,
+                                               "worst_rate_per_tolerance_1_s": rest.worst_rate_per_tolerance}
 
     def consistent(self, t: float) -> None:
         """Every unit at the solver's state at t, constants included (the start, or after an input

@@ -144,6 +144,9 @@ class Unit:
     def next_time_event(self) -> float | None:
         return None
 
+    def time_event(self, t: float) -> None:
+        """The master reached this (non-continuous) unit's time event at t: schedule the next."""
+
     def discrete_inputs_changed(self) -> bool:
         """True when a discrete input's value in inbuf waits to be set in event mode (ME FMUs)."""
         return False
@@ -180,6 +183,9 @@ class PyUnit(Unit):
         # a memoryless block without inputs may offer outputs_at(t_s) -> its output values in
         # `outputs` order (the stroke controller): the hot loop then skips the dicts
         self._fast = getattr(block, "outputs_at", None) if self.memoryless and not self.input_names else None
+        # a block whose outputs jump at known instants (a sampled command) offers next_sample_s(t)
+        self._next_sample = getattr(block, "next_sample_s", None)
+        self._next_event: float | None = None
 
     def time_function(self) -> tuple[Any, list[float]] | None:
         offer = getattr(self.block, "time_function", None)
@@ -193,6 +199,13 @@ class PyUnit(Unit):
             raise
         except Exception as exc:
             raise StepError(self.name, t0, f"start() failed: {exc}", function="start") from exc
+        self._next_event = self._next_sample(t0) if self._next_sample is not None else None
+
+    def next_time_event(self) -> float | None:
+        return self._next_event
+
+    def time_event(self, t: float) -> None:
+        self._next_event = self._next_sample(t) if self._next_sample is not None else None
 
     def close(self) -> None:
         try:
@@ -258,10 +271,10 @@ class PyUnit(Unit):
 
     def get_state(self) -> Any:
         inner = self.block.get_state() if hasattr(self.block, "get_state") else None
-        return (self.t, dict(self._inputs), inner)
+        return (self.t, dict(self._inputs), inner, self._next_event)
 
     def set_state(self, state: Any) -> None:
-        self.t, inputs, inner = state
+        self.t, inputs, inner, self._next_event = state
         self._inputs.update(inputs)
         if hasattr(self.block, "set_state"):
             self.block.set_state(inner)

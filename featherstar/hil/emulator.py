@@ -17,6 +17,15 @@ follows setpoints only once enabled (if its map has [enable]); the load cell rep
 plant's thrust plus a preload (the feather's weight in water, removed by tare) plus Gaussian
 noise, as kg-force or whatever unit its map says, with the stable and overload bits.
 
+**An integrating load cell.** Load-cell converters are sigma-delta ADCs: a reading is the mean
+force over the conversion, not an instant of it. When the plant keeps `impulse_Ns` (both plants
+here do), each reading (and a tare) is the mean force since the previous reading, over at most
+the last `CONVERSION_S` (a converter integrates no longer than its conversion: a tare after a
+pause is the last 20 ms, not the pause). This matters on a bench loop: the servo's acceleration,
+hence the thrust, jumps at every setpoint the client writes, and instantaneous samples taken
+just after each write biased a plain feather's mean thrust by +14 %; readings that tile the
+time are unbiased.
+
 Use `start_emulator()` (background thread, in-process, supports fault injection) or
 `spawn_emulator()` (child process, can be killed like a real device) in tests and benches, and
 `featherstar emulate` on the command line.
@@ -25,6 +34,7 @@ from __future__ import annotations
 
 import abc
 import asyncio
+import collections
 import json
 import logging
 import math
@@ -58,6 +68,9 @@ TICK_S = 0.02                           # the plant is advanced at least this of
 # A served state older than this is "behind real time": 5 steps of a 250 Hz client, 0.1 rad of
 # the servo's fastest travel, 2 % of a 1 s stroke.
 LAG_LIMIT_S = 0.02
+#: The longest a reading integrates the force (a 50 samples/s converter); readings closer together
+#: integrate from the previous one.
+CONVERSION_S = 0.02
 _SILENT_MAX_S = 30.0                    # a silent device answers eventually, so stop() ends
 _READ_FC = {Function.HOLDING: 3, Function.INPUT: 4}
 log = logging.getLogger(__name__)
@@ -86,6 +99,11 @@ class Emulator:
         self.rng = random.Random(seed)
         self.lock = threading.Lock()
         self.tare_N = 0.0
+        self._plant_time_s = 0.0      # time the plant was advanced by
+        # (plant time, impulse_Ns) over the last CONVERSION_S at least, for the integrating load cell
+        self._impulses: collections.deque[tuple[float, float]] = collections.deque()
+        self._note_impulse()
+        self._conversion = (0.0, None)   # (plant time, mean force) of the last reading
         self.servo_enabled = servo_map.enable is None
         self.servo_setpoint_rad: float | None = None
         self.requests = 0
@@ -129,6 +147,43 @@ class Emulator:
         """What the cell feels, before tare and noise."""
         return self.plant.thrust_N + self.preload_N
 
+    def converted_force_N(self) -> float:
+        """What a reading reports, before tare and noise: the mean force since the previous
+        reading, over at most CONVERSION_S (the instantaneous force for a plant without
+        `impulse_Ns`, and when no plant time has passed since the start)."""
+        if getattr(self.plant, "impulse_Ns", None) is None:
+            return self.force_N()
+        t_last_s, mean_N = self._conversion
+        t1_s = self._plant_time_s
+        t0_s = max(t_last_s, t1_s - CONVERSION_S, self._impulses[0][0])
+        if t1_s > t0_s:
+            mean_N = (self._impulses[-1][1] - self._impulse_at(t0_s)) / (t1_s - t0_s) + self.preload_N
+        elif mean_N is None:
+            mean_N = self.force_N()
+        self._conversion = (t1_s, mean_N)
+        return mean_N
+
+    def _note_impulse(self) -> None:
+        impulse_Ns = getattr(self.plant, "impulse_Ns", None)
+        if impulse_Ns is None:
+            return
+        history = self._impulses
+        history.append((self._plant_time_s, impulse_Ns))
+        while len(history) > 2 and history[1][0] <= self._plant_time_s - CONVERSION_S:
+            history.popleft()
+
+    def _impulse_at(self, t_s: float) -> float:
+        """The plant's impulse at plant time t_s (linear between the advances that bracket it)."""
+        previous = self._impulses[0]
+        for entry in self._impulses:
+            if entry[0] >= t_s:
+                if entry[0] == previous[0]:
+                    return entry[1]
+                share = (t_s - previous[0]) / (entry[0] - previous[0])
+                return previous[1] + share * (entry[1] - previous[1])
+            previous = entry
+        return previous[1]
+
     def _advance(self) -> bool:
         """Advance the plant to now (a request); False (after resetting it) if its step failed."""
         self.requests += 1
@@ -151,6 +206,8 @@ class Emulator:
             angle_rad, dt_s = self.plant.angle_rad, min(now - self._t_mono, self.max_advance_s)
             try:
                 self.plant.advance(dt_s)
+                self._plant_time_s += dt_s
+                self._note_impulse()
                 if not (math.isfinite(self.plant.angle_rad) and math.isfinite(self.plant.thrust_N)):
                     raise HILError(f"plant state not finite (angle {self.plant.angle_rad})")
             except Exception as exc:   # one bad step must not poison the device for good
@@ -180,6 +237,9 @@ class Emulator:
         reset = getattr(self.plant, "reset", None)
         if reset is not None:
             reset()
+        self._impulses.clear()
+        self._note_impulse()
+        self._conversion = (self._plant_time_s, None)
         self.servo_setpoint_rad = None
         self._rate_rad_s = 0.0
 
@@ -225,12 +285,12 @@ class Emulator:
             if values is not None:
                 if m.tare and address <= m.tare.address < address + count \
                         and values[m.tare.address - address] == m.tare.value:
-                    self.tare_N = self.force_N()
+                    self.tare_N = self.converted_force_N()
                 _put(registers, address, values)
                 return None
             if function_code == _READ_FC[m.read_function] and \
                     self._faults.get("loadcell") != "freeze":
-                force_N = self.force_N()
+                force_N = self.converted_force_N()
                 reading_N = force_N - self.tare_N + self.rng.gauss(0.0, self.noise_N)
                 self._put_number(registers, m.value, reading_N / m.value.to_si)
                 if m.status is not None:

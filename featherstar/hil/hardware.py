@@ -24,7 +24,7 @@ from urllib.parse import parse_qsl, urlencode, urlsplit, urlunsplit
 from ..cosim.errors import SceneError
 from ..cosim.scene import Scene, scene_from_dict
 
-from .blocks import LoadCell, Servo
+from .blocks import MG996R_RATE_RAD_S, LoadCell, Servo
 
 SLOTS = ("servo", "loadcell")
 LOADCELL_BLOCK = "loadcell_hw"
@@ -74,6 +74,14 @@ def parse_hardware(items: list[str] | None) -> dict[str, str]:
             raise SceneError(f"--hardware {slot} given twice")
         out[slot] = url
     return out
+
+
+def bench_command(step_s: float) -> dict[str, float]:
+    """Stroke-controller settings that make a simulation command its servo as a bench run at
+    `step_s` does (featherstar.cosim.controller, "How the command reaches the servo"): the stroke
+    sampled once per loop step and held, each sample rate-limited as the hardware servo block
+    limits its commands. A simulation that is to predict a bench measurement needs them."""
+    return {"sample_period_s": float(step_s), "rate_limit_rad_s": MG996R_RATE_RAD_S}
 
 
 def with_hardware(scene: Scene, hardware: Mapping[str, str], *, step_s: float = 4e-3,

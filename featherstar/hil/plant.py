@@ -1,7 +1,10 @@
 """Plants the emulator puts behind the register maps: servo + feather, advanced in real time.
 
 `Plant` is the protocol; `FlatPlatePlant` is the analytic default. A plant running the project's
-feather FMUs only needs the same four members.
+feather FMUs only needs the same four members. A plant that also keeps `impulse_Ns`, the time
+integral of its thrust since it started (or was reset), gets an integrating load cell: each
+reading is the mean force since the previous one, as a sigma-delta load-cell converter reports
+(featherstar.hil.emulator); without it a reading is the instantaneous thrust.
 
 Convention: angle 0 = feather horizontal; positive angle = tip up; thrust positive up (the
 tared load-cell reading of the simulated feather).
@@ -63,6 +66,7 @@ class FlatPlatePlant:
     rate_rad_s: float = 0.0
     accel_rad_s2: float = 0.0
     setpoint_rad: float = field(default=0.0, init=False)
+    impulse_Ns: float = field(default=0.0, init=False)
 
     @property
     def added_mass_kg_m(self) -> float:
@@ -85,7 +89,7 @@ class FlatPlatePlant:
 
     def reset(self) -> None:
         """Back to rest at angle 0 (the emulator's recovery from a failed step)."""
-        self.angle_rad = self.rate_rad_s = self.accel_rad_s2 = self.setpoint_rad = 0.0
+        self.angle_rad = self.rate_rad_s = self.accel_rad_s2 = self.setpoint_rad = self.impulse_Ns = 0.0
 
     def advance(self, dt_s: float) -> None:
         """Semi-implicit Euler in substeps of at most max_dt_s (tau_motor_s / 25 by default)."""
@@ -99,6 +103,7 @@ class FlatPlatePlant:
             self.accel_rad_s2 = (command - self.rate_rad_s) / self.tau_motor_s
             self.rate_rad_s += self.accel_rad_s2 * h
             self.angle_rad += self.rate_rad_s * h
+            self.impulse_Ns += self.thrust_N * h
 
 
 def read_plant_parameters(path: str | Path | None, items: Sequence[str] = ()) -> dict[str, float]:

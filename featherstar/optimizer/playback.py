@@ -23,7 +23,7 @@ from typing import Mapping
 import numpy as np
 from scipy.interpolate import UnivariateSpline
 
-from ..cosim.block import Port
+from ..cosim.block import Port, TimeSource
 
 from .errors import OptimizerError
 
@@ -57,14 +57,13 @@ def angle_spline(time_s: np.ndarray, angle_rad: np.ndarray, noise_rad: float | N
     return UnivariateSpline(t, a, k=5, s=len(t) * noise_rad**2)
 
 
-class RecordedRoot:
+class RecordedRoot(TimeSource):
     """Memoryless block: outputs angle_rad, rate_rad_s, accel_rad_s2 of a recorded root angle,
     held at its first and last values outside the recording. `path`: an .npz with time_s and
     angle_rad (a scene's parameters are plain values, so the recording comes by file)."""
 
-    can_iterate = True
-
     def __init__(self, name: str, path: str) -> None:
+        super().__init__()
         self.name = name
         try:
             with np.load(Path(path)) as data:
@@ -74,13 +73,11 @@ class RecordedRoot:
         self._spline = angle_spline(time_s, angle_rad)
         self._derivatives = (self._spline.derivative(1), self._spline.derivative(2))
         self._span = (float(time_s[0]), float(time_s[-1]))
-        self.inputs: dict[str, Port] = {}
         self.outputs = {
             "angle_rad": Port("angle_rad", "rad", "recorded root angle (smoothed)"),
             "rate_rad_s": Port("rate_rad_s", "rad/s", "its rate"),
             "accel_rad_s2": Port("accel_rad_s2", "rad/s2", "its acceleration"),
         }
-        self._t = 0.0
 
     def evaluate(self, t_s: float, inputs: Mapping[str, float]) -> dict[str, float]:
         t = min(max(t_s, self._span[0]), self._span[1])
@@ -88,18 +85,3 @@ class RecordedRoot:
             return {"angle_rad": float(self._spline(t)), "rate_rad_s": 0.0, "accel_rad_s2": 0.0}
         return {"angle_rad": float(self._spline(t)), "rate_rad_s": float(self._derivatives[0](t)),
                 "accel_rad_s2": float(self._derivatives[1](t))}
-
-    def start(self, t0_s: float) -> None:
-        self._t = t0_s
-
-    def set_inputs(self, values: Mapping[str, float]) -> None:
-        pass
-
-    def get_outputs(self) -> dict[str, float]:
-        return self.evaluate(self._t, {})
-
-    def do_step(self, t_s: float, h_s: float) -> None:
-        self._t = t_s + h_s
-
-    def close(self) -> None:
-        pass

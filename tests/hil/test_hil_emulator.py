@@ -146,7 +146,7 @@ def test_fmu_plant_reset_starts_fresh_instances_at_rest():
     plant.advance(0.2)
     moved = plant.angle_rad
     plant.reset()
-    assert moved > 0.3 and plant.angle_rad == 0.0 and plant.thrust_N == 0.0
+    assert moved > 0.3 and abs(plant.angle_rad) < 1e-12 and abs(plant.thrust_N) < 1e-9   # at rest again
     plant.set_setpoint_rad(0.5)
     plant.advance(0.2)
     assert plant.angle_rad == pytest.approx(moved, rel=1e-9)   # the same physics again
@@ -159,3 +159,85 @@ def test_only_loopback_counts_as_local(host, loopback):
     from featherstar.hil.cli import is_loopback
 
     assert is_loopback(host) is loopback
+
+
+class _SinePlant:
+    """thrust = sin(2π·7 Hz·t) of its own time: the emulator's readings can be checked exactly."""
+
+    angle_rad = 0.0
+
+    def __init__(self) -> None:
+        self.t_s = 0.0
+
+    @property
+    def thrust_N(self) -> float:
+        return math.sin(2 * math.pi * 7.0 * self.t_s)
+
+    @property
+    def impulse_Ns(self) -> float:
+        return (1.0 - math.cos(2 * math.pi * 7.0 * self.t_s)) / (2 * math.pi * 7.0)
+
+    def set_setpoint_rad(self, x: float) -> None:
+        pass
+
+    def advance(self, dt_s: float) -> None:
+        self.t_s += dt_s
+
+
+def test_the_emulated_load_cell_integrates_like_a_sigma_delta_converter(monkeypatch):
+    """Each reading is the mean force since the previous one (so the readings' time integral is
+    the plant's impulse, whatever the reading times), not the force at the reading's instant."""
+    import time
+
+    from featherstar.hil import emulator as emulator_module
+    from featherstar.hil.registers import load_loadcell_map
+
+    monkeypatch.setattr(emulator_module, "CONVERSION_S", 1.0)   # longer than any pause here
+    plant = _SinePlant()
+    emu = emulator_module.Emulator(load_loadcell_map("loadcell-float32-abcd"), load_servo_map("servo-default"),
+                                   plant, noise_N=0.0, preload_N=0.0)
+    emu.tick()
+    assert emu.converted_force_N() == pytest.approx(plant.thrust_N, abs=1e-12)   # nothing to average yet
+    integral_Ns, t_previous_s, impulse_previous_Ns = 0.0, plant.t_s, plant.impulse_Ns
+    for pause_s in (0.021, 0.033, 0.025, 0.047):   # a tick advances the plant after TICK_S = 20 ms
+        time.sleep(pause_s)
+        emu.tick()
+        reading_N = emu.converted_force_N()
+        dt_s = plant.t_s - t_previous_s
+        assert dt_s > 0
+        assert reading_N == pytest.approx((plant.impulse_Ns - impulse_previous_Ns) / dt_s, abs=1e-9)
+        assert emu.converted_force_N() == reading_N       # read again at once: the same conversion
+        integral_Ns += reading_N * dt_s
+        t_previous_s, impulse_previous_Ns = plant.t_s, plant.impulse_Ns
+    assert integral_Ns == pytest.approx(plant.impulse_Ns - _SinePlant().impulse_Ns, abs=1e-12)
+
+
+class _StepPlant(_SinePlant):
+    """1 N for its first 0.1 s, then nothing."""
+
+    @property
+    def thrust_N(self) -> float:
+        return 1.0 if self.t_s < 0.1 else 0.0
+
+    @property
+    def impulse_Ns(self) -> float:
+        return min(self.t_s, 0.1)
+
+
+def test_a_reading_after_a_pause_integrates_one_conversion_not_the_pause():
+    """A tare after a rest reads the force now (the last conversion), not the rest's average:
+    a servo that moved back to its safe position during the rest does not offset the next run."""
+    import time
+
+    from featherstar.hil.emulator import CONVERSION_S, Emulator
+    from featherstar.hil.registers import load_loadcell_map
+
+    plant = _StepPlant()
+    emu = Emulator(load_loadcell_map("loadcell-float32-abcd"), load_servo_map("servo-default"), plant,
+                   noise_N=0.0, preload_N=0.0)
+    emu.tick()
+    emu.converted_force_N()
+    while plant.t_s < 0.1 + 3 * CONVERSION_S:
+        time.sleep(0.021)
+        emu.tick()
+    assert emu.converted_force_N() == pytest.approx(0.0, abs=1e-12)
