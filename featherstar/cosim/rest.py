@@ -4,18 +4,18 @@ A model's start values are whatever its author wrote down; for a feather they ar
 sheet, which is not at rest in water (it sags under its net buoyancy, then rings). A bench that
 was switched on and left alone sits at rest: every continuous state's derivative is zero
 (Modelica's steady-state initialisation, `der(x) = 0`). `solve_rest` finds that state for the
-strong coupling's ODE, y' = f(t0, y), by Newton's method with a finite-difference Jacobian,
-from the start values:
+strong coupling's ODE, y' = f(t0, y), from the start values, as the least-squares problem
+min |f(t0, y) / tol|, tol = rtol·|y0| + atol, with variables scaled by tol too:
 
-- the step is the least-squares one, in tolerance-scaled states, so a state the derivatives do
-  not depend on (a body's position on a rail) keeps its start value instead of making the
-  Jacobian singular;
-- a step that does not reduce the residual is halved (the one-way stops of the hinged feathers
-  are steep);
-- "at rest" means every state moves less than its own tolerance (rtol·|y| + atol) in a second.
+- a trust-region method (scipy's dogbox), not plain Newton: the hinged feathers' one-way stops
+  are steep, smoothed kinks at zero fold, where full Newton steps overshoot and a line search
+  crawls (a spanwise feather: 40 iterations at step 1e-3 without converging);
+- the trust-region step solves the linear subproblem in the least-squares sense, so a state the
+  derivatives do not depend on (a body's position on a rail) keeps its start value;
+- "at rest" means every state moves less than its own tolerance in a second.
 
-When no such state exists (an input that moves at the start: a servo told to go elsewhere, a
-stroke whose root accelerates at t0) the solve fails and says which state would not come to rest.
+When no such state exists (an input that keeps pushing, a model without an equilibrium) the
+solve fails and says which state would not come to rest.
 """
 from __future__ import annotations
 
@@ -25,13 +25,12 @@ from dataclasses import dataclass
 from typing import Callable, Sequence
 
 import numpy as np
+from scipy.optimize import least_squares
 
 from .errors import StepError
 
-#: Newton iterations before the solve gives up (it converges in a handful from a straight feather).
-MAX_ITERATIONS = 40
-#: Step halvings per iteration before the solve gives up.
-MAX_HALVINGS = 20
+#: Function evaluations before the solve gives up (a feather converges in tens to hundreds).
+MAX_EVALUATIONS = 20000
 
 
 @dataclass(frozen=True)
@@ -39,8 +38,7 @@ class Rest:
     """The state at rest, and how it was found."""
 
     y: np.ndarray
-    iterations: int
-    evaluations: int
+    evaluations: int  # of the right-hand side, finite-difference Jacobians included
     worst_rate_per_tolerance: float  # max |dy/dt| / (rtol|y| + atol), in 1/s
 
 
@@ -52,6 +50,8 @@ def solve_rest(rhs: Callable[[float, int, int], int], t0: float, y0: Sequence[fl
     n = len(y0)
     y_buf, f_buf = (c_double * n)(), (c_double * n)()
     y_address, f_address = ctypes.addressof(y_buf), ctypes.addressof(f_buf)
+    y_start = np.array(y0, dtype=float)
+    tolerance = rtol * np.abs(y_start) + atol
     evaluations = 0
 
     def f(y: np.ndarray) -> np.ndarray:
@@ -61,48 +61,41 @@ def solve_rest(rhs: Callable[[float, int, int], int], t0: float, y0: Sequence[fl
         status = rhs(t0, y_address, f_address)
         out = np.array(f_buf[:], dtype=float)
         if status != 0 or not np.all(np.isfinite(out)):
-            return np.full(n, np.inf)
+            raise _NotFinite
         return out
 
-    y = np.array(y0, dtype=float)
-    scale = rtol * np.abs(y) + atol          # the tolerance of each state, fixed at the start values
-    fy = f(y)
-    if not np.all(np.isfinite(fy)):
+    def worst(y: np.ndarray, fy: np.ndarray) -> tuple[float, int]:
+        rate = np.abs(fy) / (rtol * np.abs(y) + atol)
+        return float(np.max(rate)), int(np.argmax(rate))
+
+    try:
+        f0 = f(y_start)
+    except _NotFinite:
         raise StepError("master", t0, "the derivatives at the start values are not finite",
-                        function="start_at_rest", cause="the model cannot be evaluated at its start values")
+                        function="start_at_rest", cause="the model cannot be evaluated at its start values") from None
+    def scaled_residual(z: np.ndarray) -> np.ndarray:
+        try:
+            return f(y_start + z * tolerance) / tolerance
+        except _NotFinite:   # a trial state the model cannot take: the trust region shrinks
+            return np.full(n, 1e30)
 
-    def size(residual: np.ndarray) -> float:
-        return float(np.max(np.abs(residual) / (rtol * np.abs(y) + atol)))
-
-    for iteration in range(1, MAX_ITERATIONS + 1):
-        if size(fy) <= 1.0:
-            return Rest(y, iteration - 1, evaluations, size(fy))
-        jacobian = np.empty((n, n))
-        for j in range(n):
-            h = 1e-7 * max(abs(y[j]), scale[j] / rtol)
-            yj = y.copy()
-            yj[j] += h
-            jacobian[:, j] = (f(yj) - fy) / h
-        if not np.all(np.isfinite(jacobian)):
-            break
-        # least squares in tolerance-scaled states: undetermined states keep their values
-        step = np.linalg.lstsq(jacobian * scale, -fy, rcond=1e-12)[0] * scale
-        norm = np.linalg.norm(fy / scale)
-        for _ in range(MAX_HALVINGS):
-            trial = y + step
-            f_trial = f(trial)
-            if np.all(np.isfinite(f_trial)) and np.linalg.norm(f_trial / scale) < norm:
-                y, fy = trial, f_trial
-                break
-            step = 0.5 * step
-        else:
-            break
-    worst = int(np.argmax(np.abs(fy) / (rtol * np.abs(y) + atol))) if np.all(np.isfinite(fy)) else 0
-    name = state_names[worst] if worst < len(state_names) else f"x{worst}"
-    block = name.split(".", 1)[0]
-    raise StepError(block, t0, f"cannot start at rest: state {name} keeps changing at "
-                    f"{fy[worst]:.3g}/s after {evaluations} evaluations",
+    y, fy = y_start, f0
+    if worst(y, fy)[0] > 1.0:
+        solution = least_squares(scaled_residual, np.zeros(n), method="dogbox", xtol=1e-14, ftol=1e-14, gtol=1e-14,
+                                 max_nfev=MAX_EVALUATIONS)
+        y = y_start + solution.x * tolerance
+        fy = scaled_residual(solution.x) * tolerance
+    size, k = worst(y, fy)
+    if size <= 1.0:
+        return Rest(y, evaluations, size)
+    name = state_names[k] if k < len(state_names) else f"x{k}"
+    raise StepError(name.split(".", 1)[0], t0, f"cannot start at rest: state {name} keeps changing at "
+                    f"{fy[k]:.3g}/s after {evaluations} evaluations",
                     function="start_at_rest",
-                    cause="no state in which nothing moves for the inputs at the start (an input that moves at "
-                    "t0, e.g. a servo commanded away from its start or a stroke accelerating at t0, or a model "
-                    "without an equilibrium); set master.start_at_rest = false to start from the start values")
+                    cause="no state in which nothing moves for the inputs at the start (an input that keeps "
+                    "pushing, or a model without an equilibrium); set master.start_at_rest = false to start "
+                    "from the start values")
+
+
+class _NotFinite(Exception):
+    """The right-hand side failed or returned NaN/inf at a trial state."""

@@ -389,7 +389,7 @@ class StrongCoupling:
         rest = solve_rest(group._rhs, t0, list(group.cv.y), m.rtol, m.atol, names)
         group.cv.reinit(t0, rest.y.tolist())
         self.consistent(t0)
-        self.context.stats["start_at_rest"] = {"iterations": rest.iterations, "evaluations": rest.evaluations,
+        self.context.stats["start_at_rest"] = {"evaluations": rest.evaluations,
                                                "worst_rate_per_tolerance_1_s": rest.worst_rate_per_tolerance}
 
     def consistent(self, t: float) -> None:
