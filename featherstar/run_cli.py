@@ -135,9 +135,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                          description="Run a shipped scene (see `featherstar scenes`), a scene TOML file or an "
                          "SSP 1.0 package (see `featherstar export-ssp`).")
     run.add_argument("scene", help="scene name, path to a .toml file, or an SSP 1.0 package (.ssp)")
-    run.add_argument("--set", action="append", default=[], metavar="BLOCK.PARAM=VALUE",
-                     help="override a block parameter or option, or master.*/metrics.* (repeatable), e.g. "
-                          "feather.morphology=spanwise controller.period_s=3 master.coupling=jacobi")
+    run.add_argument("--set", action="extend", nargs="+", default=[], metavar="BLOCK.PARAM=VALUE",
+                     help="override block parameters or options, or master.*/metrics.* (one or more per --set, "
+                          "repeatable), e.g. --set feather.morphology=spanwise controller.period_s=3 "
+                          "master.coupling=jacobi")
     run.add_argument("--out", type=Path, help="write summary.json, results.csv and thrust.png here")
     run.add_argument("--record", help="comma-separated signals to record instead of the scene's (block.port)")
     run.add_argument("--no-figure", action="store_true", help="skip the figure")

@@ -22,8 +22,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("scene", help="scene name or path to a .toml file")
     parser.add_argument("--out", type=Path, required=True, help="the .ssp file to write")
-    parser.add_argument("--set", action="append", default=[], metavar="BLOCK.PARAM=VALUE",
-                        help="override a block parameter or option, or master.*/metrics.* (repeatable)")
+    parser.add_argument("--set", action="extend", nargs="+", default=[], metavar="BLOCK.PARAM=VALUE",
+                        help="override block parameters or options, or master.*/metrics.* (one or more per "
+                             "--set, repeatable)")
     parser.add_argument("--fmi", type=int, choices=(2, 3), default=3, metavar="{2,3}",
                         help="FMI version of the FMUs built from models (default 3; 2 for importers "
                         "that read FMI 2.0 only); FMU files are packed as they are")

@@ -71,8 +71,9 @@ def _bounds(text: str) -> tuple[str, tuple[float, float]]:
 
 def _common(parser: argparse.ArgumentParser, *, default_noise_N: float) -> None:
     parser.add_argument("scene", metavar="SCENE", help="scene name or path, or synthetic:plain|chordwise|spanwise")
-    parser.add_argument("--set", dest="overrides", metavar="KEY=VALUE", type=_override, action="append", default=[],
-                        help="scene override, repeatable (e.g. feather.width_ratio=7.5)")
+    parser.add_argument("--set", dest="overrides", metavar="KEY=VALUE", type=_override, action="extend", nargs="+",
+                        default=[], help="scene overrides, one or more per --set, repeatable (e.g. "
+                        "feather.width_ratio=7.5)")
     parser.add_argument("--noise-N", type=float, default=default_noise_N, metavar="SD",
                         help=f"load-cell noise sd in newtons (default {default_noise_N:g}; 0 = ideal sensor)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the noise and of the optimizer")

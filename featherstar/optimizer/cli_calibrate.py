@@ -39,8 +39,9 @@ def register_calibrate(subparsers: argparse._SubParsersAction, override_type) ->
                     f"averaged over {BIN_S * 1e3:g} ms bins over the first window (docs/bench-loop.md says why).")
     cal.add_argument("runs", nargs="+", type=Path, metavar="RUN", help="run directory or CSV (repeatable)")
     cal.add_argument("--scene", default="testbed", help="scene whose feather block is calibrated (default testbed)")
-    cal.add_argument("--set", dest="overrides", metavar="KEY=VALUE", type=override_type, action="append", default=[],
-                     help="scene override, e.g. feather.morphology=spanwise (the feather the bench has)")
+    cal.add_argument("--set", dest="overrides", metavar="KEY=VALUE", type=override_type, action="extend", nargs="+",
+                     default=[], help="scene overrides, one or more per --set, e.g. feather.morphology=spanwise "
+                     "(the feather the bench has)")
     cal.add_argument("--fit", type=_fit, action="append", default=[], metavar="NAME[=LOW,HIGH]",
                      help=f"coefficient to fit, within its physical range or a narrower one (default: "
                           f"{', '.join(DEFAULT_COEFFICIENTS)}, those the feather has)")

@@ -16,9 +16,10 @@ def test_scenes_lists_shipped_scenes(capsys):
 
 def test_run_writes_summary_results_and_figure(tmp_path, capsys):
     out = tmp_path / "run"
-    rc = main(["run", "testbed", "--set", "feather.morphology=plain", "--set", "master.periods=2",
-               "--set", "metrics.settle_periods=1", "--set", "controller.t_up_s=0.3",
-               "--set", "master.coupling=strong", "--out", str(out), "-q"])
+    # one or more overrides per --set, as many --set as wanted
+    rc = main(["run", "testbed", "--set", "feather.morphology=plain", "master.periods=2",
+               "--set", "metrics.settle_periods=1", "--set", "controller.t_up_s=0.3", "master.coupling=strong",
+               "--out", str(out), "-q"])
     assert rc == 0
     printed = capsys.readouterr().out
     assert "thrust ratio TR" in printed and "mean thrust" in printed
@@ -27,6 +28,7 @@ def test_run_writes_summary_results_and_figure(tmp_path, capsys):
         assert isinstance(summary[key], float)
     assert summary["complete"] is True
     assert summary["info"]["overrides"]["controller.t_up_s"] == "0.3"
+    assert summary["info"]["overrides"]["master.periods"] == "2"
     with open(out / "results.csv") as fh:
         rows = list(csv.reader(fh))
     assert rows[0][0] == "time [s]" and "feather.thrust_N [N]" in rows[0] and "servo.angle_rad [rad]" in rows[0]
