@@ -12,7 +12,8 @@
    a run: tests/optimizer/test_calibration.py), fitted by `featherstar.optimizer.calibrate`
    (drag, added mass and, for flapped feathers, hinge stiffness); then a fourth, unseen stroke
    measured on the emulator and predicted by the testbed simulation with the calibrated
-   coefficients and with the defaults.
+   coefficients and with the defaults, and that stroke's mean thrust's change at -1 % and +1 % of
+   each coefficient (how much a fitting error costs the prediction).
 
 `--offline`: the same plant (featherstar.hil.fmu_plant.FmuPlant, the emulator's, with the same
 hidden coefficients) driven without real time exactly as the bench client drives it (at each
@@ -207,6 +208,14 @@ def calibration(morphology: str, offline: bool) -> tuple[dict, object]:
     def error(a: float, b: float) -> float:
         return round(a / b - 1.0, 4)
 
+    # How well-conditioned is the unseen stroke's mean thrust? Its change at -1 % and +1 % of each
+    # coefficient, from the hidden values (what a coefficient's fitting error costs the prediction;
+    # a flapped feather's response is chaotic, and then the two are not of opposite sign).
+    truth = {**simulated, **{f"feather.{k}": v for k, v in hidden.items()}}
+    mean_true_N = run_scene("testbed", truth).summary["mean_thrust_N"]
+    sensitivity = {k: [round(run_scene("testbed", {**truth, f"feather.{k}": hidden[k] * f}).summary["mean_thrust_N"]
+                             / mean_true_N - 1.0, 4) for f in (0.99, 1.01)] for k in result.values}
+
     out = {
         "morphology": morphology,
         "recordings": "offline: the emulator's plant driven as the client drives it, no real time" if offline
@@ -231,6 +240,8 @@ def calibration(morphology: str, offline: bool) -> tuple[dict, object]:
                                  "mean_thrust_N": error(predicted["mean_thrust_N"], measured["mean_thrust_N"])},
             "default_error": {"thrust_ratio": error(default["thrust_ratio"], measured["thrust_ratio"]),
                               "mean_thrust_N": error(default["mean_thrust_N"], measured["mean_thrust_N"])},
+            "hidden_coefficients_mean_thrust_N": mean_true_N,
+            "mean_thrust_change_at_minus_plus_1_percent": sensitivity,
         },
     }
     for name, e in out["relative_error"].items():
@@ -239,7 +250,9 @@ def calibration(morphology: str, offline: bool) -> tuple[dict, object]:
     print(f"R² {result.r_squared:.4f}, {result.evaluations} simulations, {result.wall_s:.0f} s; unseen stroke: "
           f"TR {u['measured']['thrust_ratio']:.3f} measured, {u['calibrated']['thrust_ratio']:.3f} calibrated, "
           f"{u['default']['thrust_ratio']:.3f} default; mean thrust {u['measured']['mean_thrust_N'] * 1e3:.2f} / "
-          f"{u['calibrated']['mean_thrust_N'] * 1e3:.2f} / {u['default']['mean_thrust_N'] * 1e3:.2f} mN")
+          f"{u['calibrated']['mean_thrust_N'] * 1e3:.2f} / {u['default']['mean_thrust_N'] * 1e3:.2f} mN "
+          f"(hidden coefficients: {mean_true_N * 1e3:.2f} mN; at -1 % / +1 %: "
+          f"{', '.join(f'{k} {v[0]:+.1%} / {v[1]:+.1%}' for k, v in sensitivity.items())})")
     return out, result
 
 
