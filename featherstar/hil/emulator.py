@@ -17,14 +17,9 @@ follows setpoints only once enabled (if its map has [enable]); the load cell rep
 plant's thrust plus a preload (the feather's weight in water, removed by tare) plus Gaussian
 noise, as kg-force or whatever unit its map says, with the stable and overload bits.
 
-**An integrating load cell.** Load-cell converters are sigma-delta ADCs: a reading is the mean
-force over the conversion, not an instant of it. When the plant keeps `impulse_Ns` (both plants
-here do), each reading (and a tare) is the mean force since the previous reading, over at most
-the last `CONVERSION_S` (a converter integrates no longer than its conversion: a tare after a
-pause is the last 20 ms, not the pause). This matters on a bench loop: the servo's acceleration,
-hence the thrust, jumps at every setpoint the client writes, and instantaneous samples taken
-just after each write biased a plain feather's mean thrust by +14 %; readings that tile the
-time are unbiased.
+**An integrating load cell.** When the plant keeps `impulse_Ns` (both plants here do), a reading
+(and a tare) is the mean force since the previous reading, over at most the last 20 ms, as a
+sigma-delta converter reports (featherstar.hil.converter); otherwise the instantaneous force.
 
 Use `start_emulator()` (background thread, in-process, supports fault injection) or
 `spawn_emulator()` (child process, can be killed like a real device) in tests and benches, and
@@ -34,7 +29,6 @@ from __future__ import annotations
 
 import abc
 import asyncio
-import collections
 import json
 import logging
 import math
@@ -49,6 +43,7 @@ from pathlib import Path
 from typing import Callable, Mapping
 
 from .codec import decode_value, encode_status, encode_value
+from .converter import CONVERSION_S, IntegratingConverter
 from .errors import HILError
 from .modbus_server import (DEVICE_FAILURE, ILLEGAL_ADDRESS, ILLEGAL_VALUE, ModbusTcpServer,
                               RateLimitedLog, spaces_for)
@@ -68,9 +63,6 @@ TICK_S = 0.02                           # the plant is advanced at least this of
 # A served state older than this is "behind real time": 5 steps of a 250 Hz client, 0.1 rad of
 # the servo's fastest travel, 2 % of a 1 s stroke.
 LAG_LIMIT_S = 0.02
-#: The longest a reading integrates the force (a 50 samples/s converter); readings closer together
-#: integrate from the previous one.
-CONVERSION_S = 0.02
 _SILENT_MAX_S = 30.0                    # a silent device answers eventually, so stop() ends
 _READ_FC = {Function.HOLDING: 3, Function.INPUT: 4}
 log = logging.getLogger(__name__)
@@ -86,7 +78,7 @@ class Emulator:
     def __init__(self, loadcell_map: LoadCellMap, servo_map: ServoMap, plant: Plant | None = None,
                  *, noise_N: float = 0.01, seed: int | None = None, preload_N: float = -0.3,
                  capacity_N: float = LOADCELL_CAPACITY_N, max_advance_s: float = 0.5,
-                 lag_limit_s: float = LAG_LIMIT_S) -> None:
+                 lag_limit_s: float = LAG_LIMIT_S, conversion_s: float = CONVERSION_S) -> None:
         self.loadcell_map, self.servo_map = loadcell_map, servo_map
         self.plant: Plant = plant if plant is not None else FlatPlatePlant()
         self.noise_N, self.preload_N, self.capacity_N = noise_N, preload_N, capacity_N
@@ -100,10 +92,8 @@ class Emulator:
         self.lock = threading.Lock()
         self.tare_N = 0.0
         self._plant_time_s = 0.0      # time the plant was advanced by
-        # (plant time, impulse_Ns) over the last CONVERSION_S at least, for the integrating load cell
-        self._impulses: collections.deque[tuple[float, float]] = collections.deque()
-        self._note_impulse()
-        self._conversion = (0.0, None)   # (plant time, mean force) of the last reading
+        impulse_Ns = getattr(self.plant, "impulse_Ns", None)
+        self._converter = None if impulse_Ns is None else IntegratingConverter(0.0, impulse_Ns, conversion_s)
         self.servo_enabled = servo_map.enable is None
         self.servo_setpoint_rad: float | None = None
         self.requests = 0
@@ -148,41 +138,11 @@ class Emulator:
         return self.plant.thrust_N + self.preload_N
 
     def converted_force_N(self) -> float:
-        """What a reading reports, before tare and noise: the mean force since the previous
-        reading, over at most CONVERSION_S (the instantaneous force for a plant without
-        `impulse_Ns`, and when no plant time has passed since the start)."""
-        if getattr(self.plant, "impulse_Ns", None) is None:
+        """What a reading reports, before tare and noise: the integrating converter's mean force
+        (the instantaneous force for a plant without `impulse_Ns`)."""
+        if self._converter is None:
             return self.force_N()
-        t_last_s, mean_N = self._conversion
-        t1_s = self._plant_time_s
-        t0_s = max(t_last_s, t1_s - CONVERSION_S, self._impulses[0][0])
-        if t1_s > t0_s:
-            mean_N = (self._impulses[-1][1] - self._impulse_at(t0_s)) / (t1_s - t0_s) + self.preload_N
-        elif mean_N is None:
-            mean_N = self.force_N()
-        self._conversion = (t1_s, mean_N)
-        return mean_N
-
-    def _note_impulse(self) -> None:
-        impulse_Ns = getattr(self.plant, "impulse_Ns", None)
-        if impulse_Ns is None:
-            return
-        history = self._impulses
-        history.append((self._plant_time_s, impulse_Ns))
-        while len(history) > 2 and history[1][0] <= self._plant_time_s - CONVERSION_S:
-            history.popleft()
-
-    def _impulse_at(self, t_s: float) -> float:
-        """The plant's impulse at plant time t_s (linear between the advances that bracket it)."""
-        previous = self._impulses[0]
-        for entry in self._impulses:
-            if entry[0] >= t_s:
-                if entry[0] == previous[0]:
-                    return entry[1]
-                share = (t_s - previous[0]) / (entry[0] - previous[0])
-                return previous[1] + share * (entry[1] - previous[1])
-            previous = entry
-        return previous[1]
+        return self._converter.read(self.plant.thrust_N) + self.preload_N
 
     def _advance(self) -> bool:
         """Advance the plant to now (a request); False (after resetting it) if its step failed."""
@@ -207,7 +167,8 @@ class Emulator:
             try:
                 self.plant.advance(dt_s)
                 self._plant_time_s += dt_s
-                self._note_impulse()
+                if self._converter is not None:
+                    self._converter.note(self._plant_time_s, self.plant.impulse_Ns)
                 if not (math.isfinite(self.plant.angle_rad) and math.isfinite(self.plant.thrust_N)):
                     raise HILError(f"plant state not finite (angle {self.plant.angle_rad})")
             except Exception as exc:   # one bad step must not poison the device for good
@@ -237,9 +198,8 @@ class Emulator:
         reset = getattr(self.plant, "reset", None)
         if reset is not None:
             reset()
-        self._impulses.clear()
-        self._note_impulse()
-        self._conversion = (self._plant_time_s, None)
+        if self._converter is not None:
+            self._converter.reset(self._plant_time_s, self.plant.impulse_Ns)
         self.servo_setpoint_rad = None
         self._rate_rad_s = 0.0
 

@@ -184,18 +184,17 @@ class _SinePlant:
         self.t_s += dt_s
 
 
-def test_the_emulated_load_cell_integrates_like_a_sigma_delta_converter(monkeypatch):
+def test_the_emulated_load_cell_integrates_like_a_sigma_delta_converter():
     """Each reading is the mean force since the previous one (so the readings' time integral is
     the plant's impulse, whatever the reading times), not the force at the reading's instant."""
     import time
 
-    from featherstar.hil import emulator as emulator_module
+    from featherstar.hil.emulator import Emulator
     from featherstar.hil.registers import load_loadcell_map
 
-    monkeypatch.setattr(emulator_module, "CONVERSION_S", 1.0)   # longer than any pause here
     plant = _SinePlant()
-    emu = emulator_module.Emulator(load_loadcell_map("loadcell-float32-abcd"), load_servo_map("servo-default"),
-                                   plant, noise_N=0.0, preload_N=0.0)
+    emu = Emulator(load_loadcell_map("loadcell-float32-abcd"), load_servo_map("servo-default"), plant,
+                   noise_N=0.0, preload_N=0.0, conversion_s=1.0)   # longer than any pause here
     emu.tick()
     assert emu.converted_force_N() == pytest.approx(plant.thrust_N, abs=1e-12)   # nothing to average yet
     integral_Ns, t_previous_s, impulse_previous_Ns = 0.0, plant.t_s, plant.impulse_Ns
@@ -229,7 +228,8 @@ def test_a_reading_after_a_pause_integrates_one_conversion_not_the_pause():
     a servo that moved back to its safe position during the rest does not offset the next run."""
     import time
 
-    from featherstar.hil.emulator import CONVERSION_S, Emulator
+    from featherstar.hil.converter import CONVERSION_S
+    from featherstar.hil.emulator import Emulator
     from featherstar.hil.registers import load_loadcell_map
 
     plant = _StepPlant()
