@@ -21,6 +21,8 @@ _DESCRIPTION = f"""\
 Serve a Modbus TCP emulator of the feather test bench: a load-cell transmitter (unit
 {LOADCELL_UNIT}) and a servo controller (unit {SERVO_UNIT}) behind register maps, with a plant
 (the servo and feather FMUs, or an analytic flat plate) advanced in real time at every request.
+The FMU plant starts at rest (feather in its buoyant equilibrium); each load-cell reading is the
+mean force since the previous one, at most the last 20 ms, as a sigma-delta converter reports.
 
 Point the hardware blocks at it:
   modbus-tcp://HOST:PORT?unit={LOADCELL_UNIT}   (LoadCell)
