@@ -188,5 +188,4 @@ class StrokeController(TimeSource):
 
     def start(self, t0_s: float) -> None:
         super().start(t0_s)
-        if t0_s != self._t0:
-            self._t0, self._samples_rad = t0_s, []
+        self._t0, self._samples_rad = t0_s, []   # samples count from the run's start

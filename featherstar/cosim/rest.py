@@ -73,6 +73,7 @@ def solve_rest(rhs: Callable[[float, int, int], int], t0: float, y0: Sequence[fl
     except _NotFinite:
         raise StepError("master", t0, "the derivatives at the start values are not finite",
                         function="start_at_rest", cause="the model cannot be evaluated at its start values") from None
+
     def scaled_residual(z: np.ndarray) -> np.ndarray:
         try:
             return f(y_start + z * tolerance) / tolerance

@@ -4,7 +4,7 @@
 feather FMUs only needs the same four members. A plant that also keeps `impulse_Ns`, the time
 integral of its thrust since it started (or was reset), gets an integrating load cell: each
 reading is the mean force since the previous one, as a sigma-delta load-cell converter reports
-(featherstar.hil.emulator); without it a reading is the instantaneous thrust.
+(featherstar.hil.converter); without it a reading is the instantaneous thrust.
 
 Convention: angle 0 = feather horizontal; positive angle = tip up; thrust positive up (the
 tared load-cell reading of the simulated feather).
