@@ -21,7 +21,11 @@ the chordwise feather: R² 0.80 at half the true stiffness, 0.997 at it, 0.89 at
 which a local least-squares step from the model's default does not land. So each coefficient is
 first scanned alone on a log grid (`SCAN_POINTS` values over a decade either side of the start,
 inside its range; the others held), keeping the best, twice over (a drag scanned while the hinge
-was still wrong compensates for it), and the least squares starts from there.
+was still wrong compensates for it), then once more on a grid one coarse step either side of the
+best (the true value lies between two coarse points: from three real-time chordwise recordings
+the least squares started at the coarse point above the true drag stopped in another valley,
+drag +56 %, R² 0.984, against R² 0.9987 near the true value), and the least squares starts from
+there.
 
 Uncertainty per coefficient: the Gauss–Newton covariance s²(JᵀJ)⁻¹ at the optimum, with s² the
 residual variance. Samples 4 ms apart are correlated where the model error (not the load cell's
@@ -58,9 +62,12 @@ _GRID_S = 4e-3
 # read-back cannot resolve (the servo's motor lag makes it change within milliseconds); the
 # impulse over a bin depends only on the velocities at its ends, which the read-back does give.
 BIN_S = 0.04
-SCAN_POINTS = 9          # per coefficient, log-spaced over a decade either side of its start
-SCAN_DECADES = 1.0
+SCAN_POINTS = 9          # per coefficient and sweep, log-spaced
+SCAN_DECADES = 1.0       # the coarse sweeps: a decade either side of the start
 SCAN_SWEEPS = 2          # a coefficient scanned while another was still wrong is scanned again
+# then one fine sweep, a coarse step either side of the best so far (the true value falls between
+# two coarse points, and the least squares from the wrong one can stop in another valley)
+FINE_SCAN_DECADES = 2 * SCAN_DECADES / (SCAN_POINTS - 1)
 
 
 @dataclass(frozen=True)
@@ -265,8 +272,12 @@ def _scanned_start(residuals, coefficients: Sequence[Coefficient], scale: np.nda
     point, in units of `scale`. See the module docstring for why."""
     x = np.ones(len(coefficients))
     best = float(np.sum(residuals(x) ** 2))
-    for i, c in [(i, c) for _ in range(SCAN_SWEEPS) for i, c in enumerate(coefficients)]:
-        grid = scale[i] * np.logspace(-SCAN_DECADES, SCAN_DECADES, SCAN_POINTS)
+    coarse = [(False, i, c) for _ in range(SCAN_SWEEPS) for i, c in enumerate(coefficients)]
+    for fine, i, c in coarse + [(True, i, c) for i, c in enumerate(coefficients)]:
+        if fine:
+            grid = x[i] * scale[i] * np.logspace(-FINE_SCAN_DECADES, FINE_SCAN_DECADES, SCAN_POINTS)
+        else:
+            grid = scale[i] * np.logspace(-SCAN_DECADES, SCAN_DECADES, SCAN_POINTS)
         for value in np.clip(grid, max(c.low, 1e-300), c.high):
             trial = x.copy()
             trial[i] = value / scale[i]
