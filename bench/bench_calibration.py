@@ -27,7 +27,7 @@ is discarded.
 The unseen stroke is predicted by the testbed simulation with the bench's command path
 (`featherstar.hil.hardware.bench_command`), as a prediction of a bench measurement must be.
 
-A run the bench study would discard (featherstar.optimizer.bench_objective) is repeated, up to
+A run the bench study would discard (featherstar.optimizer.bench.objective) is repeated, up to
 ATTEMPTS times, and counted. Writes bench_calibration_<morphology>.json and .png (measured vs
 fitted thrust over the fit window).
 """
@@ -46,20 +46,19 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-
-from featherstar.cosim.controller import resolve_stroke  # noqa: E402
-from featherstar.cosim.metrics import thrust_metrics  # noqa: E402
-from featherstar.cosim.run import run_scene  # noqa: E402
-from featherstar.cosim.scene import load_scene  # noqa: E402
-from featherstar.cosim.stroke import root_motion  # noqa: E402
+from featherstar.cosim.scene.data import load_scene  # noqa: E402
+from featherstar.cosim.swimmer.controller import resolve_stroke  # noqa: E402
+from featherstar.cosim.swimmer.metrics import thrust_metrics  # noqa: E402
+from featherstar.cosim.swimmer.run import run_scene  # noqa: E402
+from featherstar.cosim.swimmer.stroke import root_motion  # noqa: E402
 from featherstar.hil.blocks import MG996R_RATE_RAD_S  # noqa: E402
-from featherstar.hil.fmu_plant import FmuPlant  # noqa: E402
 from featherstar.hil.emulator import spawn_emulator  # noqa: E402
+from featherstar.hil.fmu_plant import FmuPlant  # noqa: E402
 from featherstar.hil.hardware import bench_command  # noqa: E402
-from featherstar.optimizer.bench_objective import discard_reasons  # noqa: E402
-from featherstar.optimizer.bench_run import BenchFault, run_on_bench  # noqa: E402
-from featherstar.optimizer.calibration import calibrate  # noqa: E402
-from featherstar.optimizer.recordings import Recording  # noqa: E402
+from featherstar.optimizer.bench.objective import discard_reasons  # noqa: E402
+from featherstar.optimizer.bench.run import BenchFault, run_on_bench  # noqa: E402
+from featherstar.optimizer.calibration.fit import calibrate  # noqa: E402
+from featherstar.optimizer.calibration.recordings import Recording  # noqa: E402
 
 # Physically plausible, not the defaults: an oscillating plate's drag above the steady 1.2, added
 # mass 15 % under the DNV estimate, a tape hinge twice the 0.01 N.m/rad/m estimate (its range is

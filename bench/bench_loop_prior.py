@@ -36,16 +36,15 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-
 from featherstar.hil.emulator import spawn_emulator  # noqa: E402
 from featherstar.optimizer.bayes import optimize  # noqa: E402
-from featherstar.optimizer.bench_objective import BenchObjective  # noqa: E402
-from featherstar.optimizer.bench_run import BenchFault  # noqa: E402
-from featherstar.optimizer.bench_study import run_bench_study  # noqa: E402
+from featherstar.optimizer.bench.objective import BenchObjective  # noqa: E402
+from featherstar.optimizer.bench.run import BenchFault  # noqa: E402
+from featherstar.optimizer.bench.sim_prior import SimPrior, study_morphology  # noqa: E402
+from featherstar.optimizer.bench.study import run_bench_study  # noqa: E402
 from featherstar.optimizer.evaluation import MeasurementPlan  # noqa: E402
 from featherstar.optimizer.loadcell import LoadCell  # noqa: E402
 from featherstar.optimizer.objective import SceneObjective  # noqa: E402
-from featherstar.optimizer.sim_prior import SimPrior, study_morphology  # noqa: E402
 from featherstar.optimizer.space import stroke_space  # noqa: E402
 
 PERIOD_S = 1.0

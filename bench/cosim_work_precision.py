@@ -28,10 +28,9 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
 
-from featherstar.cosim.monolithic import run_monolithic  # noqa: E402
-from featherstar.cosim.run import run_scene  # noqa: E402
+from featherstar.cosim.swimmer.run import run_scene  # noqa: E402
+from featherstar.dashboard.monolithic import run_monolithic  # noqa: E402
 
 RESULTS = ROOT / "bench" / "results"
 

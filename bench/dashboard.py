@@ -1,6 +1,6 @@
 """The benchmark dashboard: every benchmark in bench/, one JSON and one markdown report.
 
-The same as `featherstar bench [--quick] [--out DIR]` (library code: cosim/dashboard.py). Runs
+The same as `featherstar bench [--quick] [--out DIR]` (library code: bench/dashboard/, installed as featherstar.dashboard). Runs
 every other script in this folder (--quick passed through, reduced where needed to stay under
 5 minutes on the 2-core machine), adds its own side-by-side measurements (the master against a
 monolithic CasADi model and against scipy solve_ivp of the same equations; cost growth with N
@@ -12,11 +12,8 @@ plots (default out: bench/results).
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from featherstar.cosim.dashboard import main  # noqa: E402
+from featherstar.dashboard import main
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -11,7 +11,7 @@ In one run, on one machine (compare the ratios: a shared machine is noisy):
    and peak RSS).
 3. The chordwise kinematic scene (6 periods of 1.5 s, CVODES Adams, rtol 1e-6): the FMU master
    on today's FMU, the same equations composed monolithically and compiled
-   (featherstar.cosim.monolithic), today's master on the FMU built from commit 32dc597 (the model's
+   (featherstar.dashboard.monolithic), today's master on the FMU built from commit 32dc597 (the model's
    share of the change), and commit 32dc597's own master on that FMU (the scene as it ran before
    the change: Python right-hand side, dense model; in a child process, timed inside it), in
    rotating order, `--repeats` times each, median wall times. TR of each; the old model's chaos band is the range
@@ -51,16 +51,16 @@ sys.path.insert(0, str(ROOT))
 
 import casadi as ca  # noqa: E402
 import matplotlib  # noqa: E402
+from featherstar.cosim.scene.data import scene_from_dict  # noqa: E402
+from featherstar.cosim.swimmer.run import run_scene  # noqa: E402
+from featherstar.dashboard.monolithic import run_monolithic  # noqa: E402
+from featherstar.fmu_src.feather import feather_model  # noqa: E402
 
 from bench._rhs_cost import rhs_ns_per_evaluation  # noqa: E402
-from featherstar.cosim.monolithic import run_monolithic  # noqa: E402
-from featherstar.cosim.run import run_scene  # noqa: E402
-from featherstar.cosim.scene import scene_from_dict  # noqa: E402
-from featherstar.fmu_src.feather import feather_model  # noqa: E402
 
 RESULTS = ROOT / "docs" / "results"
 OLD_COMMIT = "32dc597"
-SCENE = ROOT / "featherstar" / "cosim" / "scenes" / "kinematic.toml"
+SCENE = ROOT / "cosim" / "scenes" / "kinematic.toml"
 MORPHOLOGIES = ("plain", "chordwise", "spanwise")
 INPUT_SAMPLE = [0.3, 1.0, 5.0, 0.0]  # a root mid-stroke: angle, rate, acceleration, no flow
 

@@ -17,7 +17,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import sys
 import time
 from pathlib import Path
 
@@ -25,9 +24,8 @@ import casadi as ca
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
 
-from featherstar.cosim.stroke import Stroke, root_motion_symbolic  # noqa: E402
+from featherstar.cosim.swimmer.stroke import Stroke, root_motion_symbolic  # noqa: E402
 from featherstar.fmu_src.feather import feather_model  # noqa: E402
 from featherstar.fmu_src.integrate import integrate  # noqa: E402
 

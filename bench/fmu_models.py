@@ -49,15 +49,14 @@ import casadi as ca
 import fmpy
 import matplotlib
 import numpy as np
-from fmpy import read_model_description
-from fmpy.fmi3 import FMU3Model, FMU3Slave
-
-from featherstar.cosim.metrics import thrust_metrics
-from featherstar.cosim.stroke import Stroke, root_motion, root_motion_symbolic
+from featherstar.cosim.swimmer.metrics import thrust_metrics
+from featherstar.cosim.swimmer.stroke import Stroke, root_motion, root_motion_symbolic
 from featherstar.fmu_src.catalog import MODELS
 from featherstar.fmu_src.export import build_fmu
 from featherstar.fmu_src.integrate import integrate
 from featherstar.fmu_src.model import Model
+from fmpy import read_model_description
+from fmpy.fmi3 import FMU3Model, FMU3Slave
 
 RESULTS = Path(__file__).resolve().parent / "results"
 QUICK_COLD = ("servo", "robot", "feather-plain")

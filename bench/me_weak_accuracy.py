@@ -19,9 +19,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests" / "cosim"))  # the test FMUs' builder (not a package)
 
 from c_fmus import build  # noqa: E402
-
-from featherstar.cosim.run import run_scene  # noqa: E402
-from featherstar.cosim.scene import scene_from_dict  # noqa: E402
+from featherstar.cosim.scene.data import scene_from_dict  # noqa: E402
+from featherstar.cosim.swimmer.run import run_scene  # noqa: E402
 
 T_END_S = 10.0
 

@@ -30,7 +30,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -41,9 +40,8 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import minimize
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
 
-from featherstar.cosim.stroke import Stroke, root_motion  # noqa: E402
+from featherstar.cosim.swimmer.stroke import Stroke, root_motion  # noqa: E402
 from featherstar.fmu_src.fluid import dnv_added_mass_coeff, oscillatory_drag_coeff, stroke_keulegan_carpenter  # noqa: E402
 
 WATER_DENSITY_KG_M3 = 1000.0

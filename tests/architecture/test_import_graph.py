@@ -1,5 +1,5 @@
-"""The project's modules import one way: no import circles (at module level or inside
-functions; `if TYPE_CHECKING:` imports excluded) and no private names imported from another
+"""The project's modules import one way: no import circles (at module level, inside functions
+or under `if TYPE_CHECKING:`: an import moved there only to break a circle is still one) and no private names imported from another
 module's namespace across packages. Found by walking every module's AST."""
 from __future__ import annotations
 
@@ -7,17 +7,27 @@ import ast
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
-PACKAGES = ("fmu_src", "cosim", "optimizer", "hil")
+
+#: Where each installed package's source lives in the checkout (pyproject's package-dir).
+SOURCES = {
+    "featherstar": ROOT / "src" / "featherstar",
+    "featherstar.fmu_src": ROOT / "fmu_src",
+    "featherstar.cosim": ROOT / "cosim",
+    "featherstar.optimizer": ROOT / "optimizer",
+    "featherstar.hil": ROOT / "hil",
+    "featherstar.dashboard": ROOT / "bench" / "dashboard",
+}
 
 
 def _modules() -> dict[str, Path]:
-    """Every module of the project's packages (featherstar/ holds them all after the rename)."""
+    """Every installed module of the project, by its installed name."""
     out = {}
-    for pkg in ("featherstar", *PACKAGES):
-        if not (ROOT / pkg).is_dir():
-            continue
-        for path in sorted((ROOT / pkg).rglob("*.py")):
-            parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    for package, folder in SOURCES.items():
+        nested = [f for f in SOURCES.values() if f != folder and folder in f.parents]
+        for path in sorted(folder.rglob("*.py")):
+            if any(n in path.parents for n in nested):
+                continue
+            parts = [package, *path.relative_to(folder).with_suffix("").parts]
             if parts[-1] == "__init__":
                 parts.pop()
             out[".".join(parts)] = path
@@ -38,10 +48,6 @@ def _imports(module: str, path: Path, known: set[str]) -> list[tuple[str, str, i
 
     def visit(node: ast.AST) -> None:
         for child in ast.iter_child_nodes(node):
-            if isinstance(child, ast.If) and _is_type_checking(child):
-                for sub in child.orelse:
-                    visit(sub)
-                continue
             if isinstance(child, ast.Import):
                 for alias in child.names:
                     found.append((alias.name, "", child.lineno))
@@ -130,21 +136,64 @@ def test_no_private_names_imported_from_other_modules():
     assert not bad, "private names imported from another module:\n" + "\n".join(bad)
 
 
-#: The one-way doors of docs/architecture.md: which rooms each room may import.
+#: The rooms of docs/architecture.md, by module-name prefix (the longest prefix wins), and the
+#: rooms each may import. The generic master (framework, fmi, scene, ssp, scenes, coupling) never
+#: imports the swimmer's domain; the packages' own __init__ facades may import their rooms.
+ROOMS = {
+    "featherstar": "app",
+    "featherstar.fmu_src": "fmu_src",
+    "featherstar.cosim": "cosim",
+    "featherstar.cosim.errors": "cosim.base",
+    "featherstar.cosim.jsonable": "cosim.base",
+    "featherstar.cosim.sccs": "cosim.base",
+    "featherstar.cosim.framework": "cosim.framework",
+    "featherstar.cosim.fmi": "cosim.fmi",
+    "featherstar.cosim.scene": "cosim.scene",
+    "featherstar.cosim.ssp": "cosim.ssp",
+    "featherstar.cosim.scenes": "cosim.scenes",
+    "featherstar.cosim.coupling": "cosim.coupling",
+    "featherstar.cosim.swimmer": "cosim.swimmer",
+    "featherstar.hil": "hil",
+    "featherstar.optimizer": "optimizer",
+    "featherstar.optimizer.bench": "optimizer.bench",
+    "featherstar.optimizer.calibration": "optimizer.calibration",
+    "featherstar.optimizer.paper": "optimizer.paper",
+    "featherstar.optimizer.cli": "optimizer.cli",
+    "featherstar.dashboard": "dashboard",
+}
+MASTER = {"cosim.base", "cosim.framework", "cosim.fmi", "cosim.scene", "cosim.ssp", "cosim.scenes", "cosim.coupling"}
+COSIM = MASTER | {"cosim.swimmer", "cosim"}
+OPTIMIZER = {"optimizer", "optimizer.bench", "optimizer.calibration", "optimizer.paper"}
 DOORS = {
     "fmu_src": set(),
-    "cosim": {"fmu_src"},
-    "hil": {"cosim", "fmu_src"},
-    "optimizer": {"hil", "cosim", "fmu_src"},
-    "app": {"optimizer", "hil", "cosim", "fmu_src"},
+    "cosim.base": {"fmu_src"},
+    "cosim.framework": {"cosim.base", "fmu_src"},
+    "cosim.fmi": {"cosim.framework", "cosim.base", "fmu_src"},
+    "cosim.scene": {"cosim.fmi", "cosim.framework", "cosim.base", "fmu_src"},
+    "cosim.ssp": {"cosim.scene", "cosim.fmi", "cosim.framework", "cosim.base", "fmu_src"},
+    "cosim.scenes": {"cosim.ssp", "cosim.scene", "cosim.base"},
+    "cosim.coupling": {"cosim.scene", "cosim.fmi", "cosim.framework", "cosim.base", "fmu_src"},
+    "cosim.swimmer": MASTER | {"fmu_src"},
+    "cosim": COSIM | {"fmu_src"},
+    "hil": COSIM | {"fmu_src"},
+    "optimizer": COSIM | {"hil", "fmu_src"},
+    "optimizer.calibration": {"optimizer"} | COSIM | {"hil", "fmu_src"},
+    "optimizer.bench": {"optimizer", "optimizer.calibration"} | COSIM | {"hil", "fmu_src"},
+    "optimizer.paper": {"optimizer"} | COSIM | {"fmu_src"},
+    "optimizer.cli": OPTIMIZER | COSIM | {"hil", "fmu_src"},
+    "dashboard": OPTIMIZER | COSIM | {"hil", "fmu_src"},
+    "app": set(ROOMS.values()),
 }
 
 
 def _room(module: str) -> str:
-    parts = module.split(".")
-    if parts[0] == "featherstar":
-        return parts[1] if len(parts) > 1 and parts[1] in PACKAGES else "app"
-    return parts[0]
+    prefix = max((p for p in ROOMS if module == p or module.startswith(p + ".")), key=len)
+    return ROOMS[prefix]
+
+
+def test_every_room_has_its_doors():
+    assert set(DOORS) == set(ROOMS.values())
+    assert all(doors <= set(ROOMS.values()) for doors in DOORS.values())
 
 
 def test_packages_import_through_the_doors_only():
@@ -153,3 +202,13 @@ def test_packages_import_through_the_doors_only():
                   for module, imps in imports.items() for target, _, line in imps
                   if _room(target) != _room(module) and _room(target) not in DOORS[_room(module)]})
     assert not bad, "imports against docs/architecture.md:\n" + "\n".join(bad)
+
+
+def test_pyproject_installs_every_package_of_the_checkout():
+    """Each folder with an __init__.py under a mapped source is listed in pyproject's packages
+    (a new room left out would be missing from a wheel while an editable install still finds it)."""
+    import tomllib
+
+    listed = set(tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["tool"]["setuptools"]["packages"])
+    found = {m for m, p in _modules().items() if p.name == "__init__.py"}
+    assert found == listed, f"in the tree, not in pyproject: {sorted(found - listed)}; listed, not found: {sorted(listed - found)}"

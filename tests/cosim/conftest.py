@@ -4,8 +4,7 @@ import copy
 from typing import Any
 
 import pytest
-
-from featherstar.cosim.scene import scene_from_dict
+from featherstar.cosim.scene.data import scene_from_dict
 
 OSCILLATOR = {
     "name": "oscillator",

@@ -1,4 +1,4 @@
-"""The strong coupling's compiled right-hand side (featherstar.cosim.compiled_rhs): the same
+"""The strong coupling's compiled right-hand side (featherstar.cosim.coupling.compiled_rhs): the same
 numbers as the Python path, FMI statuses answered as the standard says (Discard: retry with a
 smaller step; Error: stop naming the block, the function and the time)."""
 from __future__ import annotations
@@ -11,14 +11,13 @@ from ctypes import c_double
 
 import numpy as np
 import pytest
-
 from conftest import OSCILLATOR, make_scene
-from featherstar.cosim.context import Context
+from featherstar.cosim.coupling.context import Context
+from featherstar.cosim.coupling.strong import OdeGroup
 from featherstar.cosim.errors import StepError
-from featherstar.cosim.run import run_scene
-from featherstar.cosim.stroke import Stroke, root_motion, root_motion_function
-from featherstar.cosim.strong import OdeGroup
-from featherstar.cosim.units import NativeCalls, Unit
+from featherstar.cosim.framework.units import NativeCalls, Unit
+from featherstar.cosim.swimmer.run import run_scene
+from featherstar.cosim.swimmer.stroke import Stroke, root_motion, root_motion_function
 
 pytestmark = pytest.mark.skipif(shutil.which("gcc") is None, reason="the compiled right-hand side needs gcc")
 
@@ -141,8 +140,8 @@ def test_error_from_the_derivatives_stops_naming_block_function_and_time(decay_l
 
 
 def test_without_gcc_the_python_path_runs_and_says_why(monkeypatch):
-    import featherstar.cosim.compiled_rhs as compiled_rhs
-    from featherstar.cosim.native import NativeBuildError
+    import featherstar.cosim.coupling.compiled_rhs as compiled_rhs
+    from featherstar.cosim.coupling.native import NativeBuildError
 
     def no_gcc(*args, **kwargs):
         raise NativeBuildError("cannot run gcc: [Errno 2] No such file or directory: 'gcc'")

@@ -4,10 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from conftest import OSCILLATOR, make_scene
-from featherstar.cosim.monolithic import run_monolithic
-from featherstar.cosim.run import run_scene
+from featherstar.cosim.swimmer.run import run_scene
+from featherstar.dashboard.monolithic import run_monolithic
 
 
 @pytest.fixture(scope="module")

@@ -1,7 +1,6 @@
 """The master's CVODE binding must not change fmpy's: both load the same SUNDIALS libraries."""
+import featherstar.cosim.coupling._cvode  # noqa: F401  (importing it is the hazard under test)
 import fmpy
-
-import featherstar.cosim._cvode  # noqa: F401  (importing it is the hazard under test)
 
 
 def test_fmpy_model_exchange_still_works_after_loading_the_master(tmp_path):

@@ -5,11 +5,11 @@ import json
 
 import numpy as np
 import pytest
-
 from conftest import OSCILLATOR, make_scene
-from featherstar.app import main
 from featherstar.cosim.errors import StepError
-from featherstar.cosim.run import run_scene
+from featherstar.cosim.swimmer.run import run_scene
+
+from featherstar.app import main
 
 POISONED = dict(
     connections=["a.position_m -> b.other_position_m", "a.velocity_m_s -> b.other_velocity_m_s",

@@ -10,12 +10,11 @@ from pathlib import Path
 import fmpy
 import numpy as np
 import pytest
+from featherstar.cosim.scene.data import scene_from_dict
+from featherstar.cosim.scene.graph import plan
+from featherstar.cosim.swimmer.run import run_scene
+from featherstar.cosim.swimmer.stroke import Stroke, root_motion
 from scipy.integrate import solve_ivp
-
-from featherstar.cosim.graph import plan
-from featherstar.cosim.run import run_scene
-from featherstar.cosim.scene import scene_from_dict
-from featherstar.cosim.stroke import Stroke, root_motion
 
 SOURCE = Path(__file__).parent / "fmi2_lag"
 

@@ -6,11 +6,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from scipy.integrate import solve_ivp
-
 from featherstar.cosim.errors import StepError
-from featherstar.cosim.run import run_scene
-from featherstar.cosim.scene import scene_from_dict
+from featherstar.cosim.scene.data import scene_from_dict
+from featherstar.cosim.swimmer.run import run_scene
+from scipy.integrate import solve_ivp
 
 PERIOD = 0.25
 

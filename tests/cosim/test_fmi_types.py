@@ -6,12 +6,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from featherstar.cosim.errors import SceneError, StepError
-from featherstar.cosim.fmi_types import conversion_problem
-from featherstar.cosim.graph import plan
-from featherstar.cosim.run import run_scene
-from featherstar.cosim.scene import scene_from_dict
+from featherstar.cosim.fmi.fmi_types import conversion_problem
+from featherstar.cosim.scene.data import scene_from_dict
+from featherstar.cosim.scene.graph import plan
+from featherstar.cosim.swimmer.run import run_scene
 
 TYPES = {2: ["Float64", "Int32", "Boolean", "String", "Enumeration"],
          3: ["Float32", "Float64", "Int8", "UInt8", "Int16", "UInt16", "Int32", "UInt32", "Int64", "UInt64",
@@ -171,7 +170,7 @@ def test_arrays_connect_whole_and_by_element(c_fmu, coupling):
 def test_results_csv_writes_every_type_in_full(c_fmu, tmp_path):
     import csv
 
-    from featherstar.cosim.report import write_outputs
+    from featherstar.cosim.swimmer.report import write_outputs
 
     fmu = c_fmu("types", 3)
     types = ["UInt64", "Int64", "Boolean", "String", "Binary", "Float64"]

@@ -5,12 +5,11 @@ import dataclasses
 import math
 
 import pytest
-
-from featherstar.cosim import graph
 from featherstar.cosim.errors import SceneError, StepError
-from featherstar.cosim.block import Passivity, Port, passivity_by_convention
-from featherstar.cosim.guards import PassiveEnergyGuard, feedback_loops, passive_energy_guards, step_problems
-from featherstar.cosim.scene import load_scene
+from featherstar.cosim.framework.block import Passivity, Port, passivity_by_convention
+from featherstar.cosim.scene import graph
+from featherstar.cosim.scene.guards import PassiveEnergyGuard, feedback_loops, passive_energy_guards, step_problems
+from featherstar.cosim.scenes import load_scene
 
 
 def _problems(scene: str, overrides: dict) -> list[str]:

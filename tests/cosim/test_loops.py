@@ -3,10 +3,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from featherstar.cosim.errors import StepError
-from featherstar.cosim.run import run_scene
 from conftest import make_scene
+from featherstar.cosim.errors import StepError
+from featherstar.cosim.swimmer.run import run_scene
 from test_scene import LOOP
 
 # y1 = 0.5 y2 + 1, y2 = -2 y1 + 3  =>  y1 = 1.25, y2 = 0.5

@@ -7,9 +7,9 @@ import zipfile
 from pathlib import Path
 
 import pytest
+from featherstar.cosim.fmi.archive import cached_fmu, fmu_archive_problem
 
 from featherstar.app import main
-from featherstar.cosim.preflight import cached_fmu, fmu_archive_problem
 
 LAG_XML = Path(__file__).parent / "fmi2_lag" / "modelDescription.xml"
 

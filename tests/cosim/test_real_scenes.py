@@ -8,9 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from featherstar.cosim.monolithic import run_monolithic
-from featherstar.cosim.run import run_scene
+from featherstar.cosim.swimmer.run import run_scene
+from featherstar.dashboard.monolithic import run_monolithic
 
 PLAIN_SHORT = {"feather.morphology": "plain", "master.periods": 2, "metrics.settle_periods": 1}
 

@@ -5,12 +5,11 @@ import ctypes
 
 import numpy as np
 import pytest
-
+from featherstar.cosim.coupling.rest import solve_rest
+from featherstar.cosim.coupling.simulator import Simulator
 from featherstar.cosim.errors import SceneError, StepError
-from featherstar.cosim.graph import plan
-from featherstar.cosim.rest import solve_rest
-from featherstar.cosim.scene import scene_from_dict
-from featherstar.cosim.simulator import Simulator
+from featherstar.cosim.scene.data import scene_from_dict
+from featherstar.cosim.scene.graph import plan
 
 
 def _bench(start_at_rest: bool, morphology: str = "plain") -> dict:

@@ -3,11 +3,10 @@ an interrupt (Ctrl-C or a signal handler's RunInterrupted) and an internal error
 from __future__ import annotations
 
 import pytest
-
+from featherstar.cosim.coupling.simulator import Simulator
 from featherstar.cosim.errors import RunInterrupted, StepError
-from featherstar.cosim.run import run_scene
-from featherstar.cosim.scene import scene_from_dict
-from featherstar.cosim.simulator import Simulator
+from featherstar.cosim.scene.data import scene_from_dict
+from featherstar.cosim.swimmer.run import run_scene
 
 SCENE = scene_from_dict({
     "name": "stops",

@@ -5,12 +5,12 @@ import dataclasses
 import math
 
 import pytest
-
 from conftest import OSCILLATOR, make_scene
-from featherstar.cosim import graph
-from featherstar.cosim.blocks import resolve
 from featherstar.cosim.errors import SceneError
-from featherstar.cosim.scene import list_scenes, load_scene, scene_from_dict
+from featherstar.cosim.scene import graph
+from featherstar.cosim.scene.blocks import resolve
+from featherstar.cosim.scene.data import scene_from_dict
+from featherstar.cosim.scenes import list_scenes, load_scene
 
 
 def test_shipped_scenes_listed_with_descriptions():

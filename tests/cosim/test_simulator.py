@@ -5,14 +5,13 @@ import math
 
 import numpy as np
 import pytest
-
 from conftest import OSCILLATOR, make_scene
+from featherstar.cosim.coupling.simulator import Simulator
 from featherstar.cosim.errors import SceneError, StepError
-from featherstar.cosim.graph import plan
-from featherstar.cosim.metrics import scene_metrics
-from featherstar.cosim.run import run_scene
-from featherstar.cosim.scene import load_scene
-from featherstar.cosim.simulator import Simulator
+from featherstar.cosim.scene.graph import plan
+from featherstar.cosim.scenes import load_scene
+from featherstar.cosim.swimmer.metrics import scene_metrics
+from featherstar.cosim.swimmer.run import run_scene
 
 
 @pytest.mark.parametrize("coupling", ["strong", "jacobi", "gauss-seidel"])

@@ -9,16 +9,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import OSCILLATOR, make_scene
+from featherstar.cosim.errors import SceneError
+from featherstar.cosim.scenes import load_scene
+from featherstar.cosim.ssp.export import export_ssp
+from featherstar.cosim.ssp.read import NS, SSD_NAME
+from featherstar.cosim.swimmer.run import run_scene
 from fmpy import read_model_description
 from fmpy.validation import validate_fmu
 
-from conftest import OSCILLATOR, make_scene
 from featherstar.app import main
-from featherstar.cosim.errors import SceneError
-from featherstar.cosim.run import run_scene
-from featherstar.cosim.scene import load_scene
-from featherstar.cosim.ssp import NS, SSD_NAME
-from featherstar.cosim.ssp_export import export_ssp
 
 # The oscillator pair plus an FMU driven by a featherstar constant (through a system input
 # connector) and driving a featherstar gain (through a system output connector).
@@ -72,7 +72,7 @@ def test_testbed_round_trip_on_fmi3_and_fmi2(tmp_path):
     short = {"feather.morphology": "plain", "master.periods": 1, "metrics.settle_periods": 0}
     direct = run_scene("testbed", short)
     for fmi_version in (3, 2):
-        package = export_ssp("testbed", tmp_path / f"testbed-fmi{fmi_version}.ssp", short, fmi_version=fmi_version)
+        package = export_ssp(load_scene("testbed"), tmp_path / f"testbed-fmi{fmi_version}.ssp", short, fmi_version=fmi_version)
         scene = load_scene(package)
         versions = {read_model_description(scene.block(b).settings["fmu"]).fmiVersion for b in ("servo", "feather")}
         assert versions == {f"{fmi_version}.0"}

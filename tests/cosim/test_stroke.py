@@ -3,8 +3,7 @@ import math
 import casadi as ca
 import numpy as np
 import pytest
-
-from featherstar.cosim.stroke import Stroke, root_motion, root_motion_symbolic, stroke_from_log_ratios
+from featherstar.cosim.swimmer.stroke import Stroke, root_motion, root_motion_symbolic, stroke_from_log_ratios
 from featherstar.fmu_src.errors import ModelError
 
 
@@ -50,7 +49,7 @@ def test_bad_stroke_is_refused(field, value):
 # --- the command a bench loop sends (controller sample_period_s, rate_limit_rad_s) -----------------
 
 def test_sampled_command_holds_the_stroke_at_each_step_end_and_limits_its_rate():
-    from featherstar.cosim.controller import Command, StrokeController
+    from featherstar.cosim.swimmer.controller import Command, StrokeController
 
     stroke = Stroke(t_up_s=0.1, t_hold_up_s=0.2, t_down_s=0.3, t_hold_down_s=0.4)
     held = StrokeController("c", stroke, Command(sample_period_s=0.01))
@@ -73,7 +72,7 @@ def test_strong_coupling_restarts_at_every_sample_and_converges_to_the_continuou
     """A held command is a jump every sample: the solver stops there (one event per sample). The
     held command converges to the continuous one as the sample period shrinks, and so does the
     mean thrust it gives (the servo's position loop, a 30 ms lag, smooths the steps)."""
-    from featherstar.cosim.run import run_scene
+    from featherstar.cosim.swimmer.run import run_scene
 
     base = {"feather.morphology": "chordwise", "controller.period_s": 1.0, "controller.log10_up_down": 0.6,
             "master.periods": 2, "metrics.settle_periods": 1}
@@ -91,7 +90,7 @@ def test_strong_coupling_restarts_at_every_sample_and_converges_to_the_continuou
 
 def test_a_rate_limit_without_sampling_is_refused():
     from featherstar.cosim.errors import SceneError
-    from featherstar.cosim.run import run_scene
+    from featherstar.cosim.swimmer.run import run_scene
 
     with pytest.raises(SceneError, match="'rate_limit_rad_s' limits a sampled command"):
         run_scene("testbed", {"controller.rate_limit_rad_s": 6.2})

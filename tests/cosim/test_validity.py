@@ -1,14 +1,13 @@
-"""featherstar.cosim.validity: which periods of a real-time run count, on synthetic signals and events."""
+"""featherstar.cosim.swimmer.validity: which periods of a real-time run count, on synthetic signals and events."""
 from __future__ import annotations
 
 import math
 
 import numpy as np
 import pytest
-
-from featherstar.cosim.metrics import thrust_metrics
-from featherstar.cosim.report import summary_table
-from featherstar.cosim.validity import MAX_LATE_S, apply_validity, judge_periods
+from featherstar.cosim.swimmer.metrics import thrust_metrics
+from featherstar.cosim.swimmer.report import summary_table
+from featherstar.cosim.swimmer.validity import MAX_LATE_S, apply_validity, judge_periods
 
 PERIOD_S, STEP_S = 1.0, 0.01
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 import math
 from typing import Mapping
 
-from featherstar.cosim.block import Port
+from featherstar.cosim.framework.block import Port
 
 
 class Integrator:

@@ -7,8 +7,7 @@ import math
 import casadi as ca
 import numpy as np
 import pytest
-
-from featherstar.cosim.stroke import Stroke, root_motion, root_motion_symbolic
+from featherstar.cosim.swimmer.stroke import Stroke, root_motion, root_motion_symbolic
 from featherstar.fmu_src.errors import ModelError
 from featherstar.fmu_src.feather import GAUSS, feather_model
 from featherstar.fmu_src.fluid import dnv_added_mass_coeff, oscillatory_drag_coeff, stroke_keulegan_carpenter

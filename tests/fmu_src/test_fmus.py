@@ -8,14 +8,13 @@ import casadi as ca
 import fmpy
 import numpy as np
 import pytest
-from fmpy import read_model_description
-from fmpy.fmi3 import FMU3Slave
-from fmpy.validation import validate_fmu
-
-from featherstar.cosim.stroke import Stroke, root_motion
+from featherstar.cosim.swimmer.stroke import Stroke, root_motion
 from featherstar.fmu_src.catalog import MODELS
 from featherstar.fmu_src.export import build_fmu
 from featherstar.fmu_src.integrate import integrate
+from fmpy import read_model_description
+from fmpy.fmi3 import FMU3Slave
+from fmpy.validation import validate_fmu
 
 # Constant inputs that exercise each model (feather: a held, swept-back root in a slow current).
 INPUTS = {

@@ -5,8 +5,7 @@ import math
 import casadi as ca
 import numpy as np
 import pytest
-
-from featherstar.cosim.stroke import Stroke, root_motion_symbolic
+from featherstar.cosim.swimmer.stroke import Stroke, root_motion_symbolic
 from featherstar.fmu_src.catalog import build_model
 from featherstar.fmu_src.errors import ModelError
 from featherstar.fmu_src.feather import feather_model

@@ -6,8 +6,7 @@ import threading
 import time
 
 import pytest
-
-from featherstar.cosim.block import Block
+from featherstar.cosim.framework.block import Block
 from featherstar.hil.blocks import LoadCell, Servo
 from featherstar.hil.emulator import start_emulator
 from featherstar.hil.errors import DeviceFault, Fault, HILConfigError, HILError

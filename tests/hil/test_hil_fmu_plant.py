@@ -10,12 +10,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from featherstar.cosim.controller import resolve_stroke
-from featherstar.cosim.metrics import thrust_metrics
-from featherstar.cosim.run import run_scene
-from featherstar.cosim.scene import load_scene
-from featherstar.cosim.stroke import root_motion
+from featherstar.cosim.scenes import load_scene
+from featherstar.cosim.swimmer.controller import resolve_stroke
+from featherstar.cosim.swimmer.metrics import thrust_metrics
+from featherstar.cosim.swimmer.run import run_scene
+from featherstar.cosim.swimmer.stroke import root_motion
 from featherstar.hil.fmu_plant import FmuPlant
 
 pytestmark = pytest.mark.hil

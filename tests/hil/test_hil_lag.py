@@ -3,20 +3,19 @@
 A plant that takes longer to advance than the wall-clock time it advances serves stale states
 the client cannot tell from fresh ones; the emulator sets the lag bit of both devices' status
 words until each has been read once, the hardware blocks note a "lag" event, and the master
-excludes the period (featherstar.cosim.validity).
+excludes the period (featherstar.cosim.swimmer.validity).
 """
 from __future__ import annotations
 
 import time
 
 import pytest
-from pymodbus.client import ModbusTcpClient
-
-from featherstar.cosim.validity import judge_periods
+from featherstar.cosim.swimmer.validity import judge_periods
 from featherstar.hil.blocks import LoadCell, Servo
 from featherstar.hil.codec import decode_status
 from featherstar.hil.emulator import LAG_LIMIT_S, LOADCELL_UNIT
 from featherstar.hil.plant import FlatPlatePlant
+from pymodbus.client import ModbusTcpClient
 
 pytestmark = pytest.mark.hil
 

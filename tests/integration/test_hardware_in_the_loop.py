@@ -9,12 +9,11 @@ import threading
 
 import numpy as np
 import pytest
-
 from featherstar.cosim.errors import SceneError, StepError
-from featherstar.hil.hardware import parse_hardware, with_hardware
-from featherstar.cosim.run import run_scene
-from featherstar.cosim.scene import load_scene
+from featherstar.cosim.scenes import load_scene
+from featherstar.cosim.swimmer.run import run_scene
 from featherstar.hil.emulator import spawn_emulator
+from featherstar.hil.hardware import parse_hardware, with_hardware
 
 pytestmark = pytest.mark.hil
 

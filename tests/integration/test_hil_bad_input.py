@@ -6,11 +6,11 @@ import os
 from pathlib import Path
 
 import pytest
+from featherstar.cosim.scenes import load_scene
+from featherstar.hil.emulator import spawn_emulator
+from featherstar.hil.hardware import split_url, with_hardware
 
 from featherstar.app import main
-from featherstar.hil.hardware import split_url, with_hardware
-from featherstar.cosim.scene import load_scene
-from featherstar.hil.emulator import spawn_emulator
 
 HW = ["--hardware", "servo=modbus-tcp://127.0.0.1:1?unit=2",
       "--hardware", "loadcell=modbus-tcp://127.0.0.1:1?unit=1"]

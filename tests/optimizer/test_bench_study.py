@@ -14,17 +14,16 @@ import threading
 
 import numpy as np
 import pytest
-
 from featherstar.hil.emulator import spawn_emulator
 from featherstar.optimizer.bayes import optimize
-from featherstar.optimizer.bench_objective import BenchObjective, discard_reasons
-from featherstar.optimizer.bench_run import BenchFault, BenchRun
-from featherstar.optimizer.bench_study import run_bench_study
+from featherstar.optimizer.bench.objective import BenchObjective, discard_reasons
+from featherstar.optimizer.bench.run import BenchFault, BenchRun
+from featherstar.optimizer.bench.sim_prior import SimPrior
+from featherstar.optimizer.bench.study import run_bench_study
 from featherstar.optimizer.cli import main as optimizer_main
 from featherstar.optimizer.evaluation import MeasurementPlan
 from featherstar.optimizer.loadcell import LoadCell
 from featherstar.optimizer.objective import SceneObjective
-from featherstar.optimizer.sim_prior import SimPrior
 from featherstar.optimizer.space import stroke_space
 
 pytestmark = pytest.mark.hil

@@ -24,17 +24,16 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from featherstar.cosim.report import write_outputs
-from featherstar.cosim.run import run_scene
+from featherstar.cosim.errors import StepError
+from featherstar.cosim.scenes import load_scene
+from featherstar.cosim.swimmer.report import write_outputs
+from featherstar.cosim.swimmer.run import run_scene
 from featherstar.hil.emulator import spawn_emulator
 from featherstar.hil.hardware import bench_command, with_hardware
-from featherstar.cosim.scene import load_scene
-from featherstar.cosim.errors import StepError
-from featherstar.optimizer.bench_objective import discard_reasons
-from featherstar.optimizer.bench_run import BenchFault, BenchRun, run_on_bench
-from featherstar.optimizer.calibration import calibrate
-from featherstar.optimizer.recordings import read_recording
+from featherstar.optimizer.bench.objective import discard_reasons
+from featherstar.optimizer.bench.run import BenchFault, BenchRun, run_on_bench
+from featherstar.optimizer.calibration.fit import calibrate
+from featherstar.optimizer.calibration.recordings import read_recording
 
 pytestmark = pytest.mark.hil
 

@@ -6,7 +6,7 @@ drag), added_mass_scale 0.85 and hinge_stiffness 0.02 N.m/rad/m, 200 Hz, recorde
 tests/optimizer/test_calibration.py during a CI run in which that test failed: every recording was
 clean (no deadline miss, gap or lag), yet the least squares, started from the coarse scan's best
 point, stopped at drag 2.43 (+56 %) with R² 0.984, where the fit near the true drag reaches R²
-0.9987. The fine scan around the coarse best (featherstar.optimizer.calibration) is what finds
+0.9987. The fine scan around the coarse best (featherstar.optimizer.calibration.fit) is what finds
 that valley; this pins it on data that showed the failure, deterministically.
 """
 from __future__ import annotations
@@ -14,9 +14,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-
-from featherstar.optimizer.calibration import calibrate
-from featherstar.optimizer.recordings import read_recording
+from featherstar.optimizer.calibration.fit import calibrate
+from featherstar.optimizer.calibration.recordings import read_recording
 
 DATA = Path(__file__).parent / "data" / "chordwise_realtime"
 HIDDEN = {"drag_coeff": 1.56, "added_mass_scale": 0.85, "hinge_stiffness_Nm_rad_m": 0.02}

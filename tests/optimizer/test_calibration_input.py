@@ -7,15 +7,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from featherstar.optimizer.bayes import optimize
-from featherstar.optimizer.calibration import calibrate
+from featherstar.optimizer.bench.sim_prior import SimPrior, study_morphology
+from featherstar.optimizer.calibration.fit import calibrate
+from featherstar.optimizer.calibration.recordings import read_recording
 from featherstar.optimizer.cli import main as optimizer_main
 from featherstar.optimizer.errors import OptimizerError
 from featherstar.optimizer.evaluation import MeasurementPlan
 from featherstar.optimizer.loadcell import LoadCell
-from featherstar.optimizer.recordings import read_recording
-from featherstar.optimizer.sim_prior import SimPrior, study_morphology
 from featherstar.optimizer.space import stroke_space
 from featherstar.optimizer.synthetic import SyntheticFeather
 
@@ -124,8 +123,8 @@ def test_calibration_recovers_coefficients_from_simulated_recordings(tmp_path):
     """The fit without real time: recordings as the emulator's plant would serve them (servo and
     feather strongly coupled, read every 4 ms, angle in 0.01°, 5 mN noise), so this runs on a
     machine too loaded for the emulator tests (tests/optimizer/test_calibration.py)."""
-    from featherstar.cosim.run import run_scene
-    from featherstar.optimizer.recordings import Recording
+    from featherstar.cosim.swimmer.run import run_scene
+    from featherstar.optimizer.calibration.recordings import Recording
 
     hidden = {"oscillatory_drag": 0.0, "drag_coeff": 1.56, "added_mass_scale": 0.85}
     result = run_scene("testbed", {"feather.morphology": "plain", "controller.period_s": 1.0, "master.t_end_s": 1.2,
@@ -145,8 +144,8 @@ def test_calibration_recovers_coefficients_from_simulated_recordings(tmp_path):
     assert calibration.r_squared > 0.99
 
     # The parameter set, as --set arguments and as a scene's feather parameters line.
-    from featherstar.cosim.scene import load_scene
-    from featherstar.optimizer.cli_calibrate import write_calibration
+    from featherstar.cosim.scenes import load_scene
+    from featherstar.optimizer.calibration.cli import write_calibration
 
     paths = write_calibration(calibration, tmp_path / "cal", runs=["run0", "run1", "run2"], scene="testbed",
                               overrides={"feather.morphology": "plain"})

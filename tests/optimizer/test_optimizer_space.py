@@ -2,11 +2,16 @@ import math
 
 import numpy as np
 import pytest
-
-from featherstar.cosim.stroke import stroke_from_log_ratios
+from featherstar.cosim.swimmer.stroke import stroke_from_log_ratios
 from featherstar.optimizer.errors import OptimizerError
 from featherstar.optimizer.space import (
-    LOG_HOLD_MOVE, LOG_UP_DOWN, STROKE_VARIABLES, ServoLimits, Variable, stroke_space, symmetric_stroke,
+    LOG_HOLD_MOVE,
+    LOG_UP_DOWN,
+    STROKE_VARIABLES,
+    ServoLimits,
+    Variable,
+    stroke_space,
+    symmetric_stroke,
 )
 
 

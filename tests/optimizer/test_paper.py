@@ -11,12 +11,11 @@ import json
 import math
 
 import pytest
-
 from featherstar.optimizer.cli import register
 from featherstar.optimizer.objective import master_available
-from featherstar.optimizer.paper import FULL, QUICK, collect, generate_report, study_specs, sweep_geometries
-from featherstar.optimizer.paper_figures import draw_all
-from featherstar.optimizer.paper_report import claims, write_markdown
+from featherstar.optimizer.paper.figures import draw_all
+from featherstar.optimizer.paper.paper import FULL, QUICK, collect, generate_report, study_specs, sweep_geometries
+from featherstar.optimizer.paper.report import claims, write_markdown
 from featherstar.optimizer.sweep import Controller
 
 TINY = dataclasses.replace(

@@ -63,7 +63,7 @@ def tolerances(morphology: str) -> Tolerances:
 
 def run_case(scene: str, overrides: Mapping[str, Any]):
     """run_scene with the signals the checks need recorded."""
-    from featherstar.cosim.run import run_scene
+    from featherstar.cosim.swimmer.run import run_scene
 
     return run_scene(scene, dict(overrides), outputs=signals(scene))
 

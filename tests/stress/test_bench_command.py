@@ -7,9 +7,9 @@ import json
 import textwrap
 
 import pytest
+from featherstar.dashboard import BenchError, find_bench_dir, run_dashboard
 
 from featherstar.app import main
-from featherstar.cosim.dashboard import BenchError, find_bench_dir, run_dashboard
 
 
 def test_bench_is_a_featherstar_command(capsys):
@@ -60,7 +60,7 @@ def test_runs_every_script_and_writes_one_report(tmp_path, monkeypatch):
 
 
 def test_quick_leaves_out_full_run_only_scripts_and_says_so(tmp_path, monkeypatch):
-    from featherstar.cosim.dashboard import runner
+    from featherstar.dashboard import runner
 
     checkout = tmp_path / "checkout"
     bench = checkout / "bench"

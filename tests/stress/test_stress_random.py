@@ -17,13 +17,12 @@ from __future__ import annotations
 import math
 
 import pytest
-from hypothesis import HealthCheck, Phase, given, settings
-from hypothesis import strategies as st
-
-from featherstar.cosim.stroke import MIN_JERK_PEAK_RATE_FACTOR
+from featherstar.cosim.swimmer.stroke import MIN_JERK_PEAK_RATE_FACTOR
 from featherstar.fmu_src.errors import FeatherstarError
 from featherstar.fmu_src.feather import feather_model
 from featherstar.fmu_src.servo import servo_model
+from hypothesis import HealthCheck, Phase, given, settings
+from hypothesis import strategies as st
 from stress_support import assert_clear_error, physical_problems, run_case
 
 pytestmark = pytest.mark.stress

@@ -11,8 +11,7 @@ import math
 
 import numpy as np
 import pytest
-
-from featherstar.cosim.stroke import MIN_JERK_PEAK_RATE_FACTOR
+from featherstar.cosim.swimmer.stroke import MIN_JERK_PEAK_RATE_FACTOR
 from featherstar.fmu_src.servo import servo_model
 from stress_support import FLAP, assert_physical, plain_stroke_overrides, run_case
 

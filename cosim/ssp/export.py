@@ -1,0 +1,200 @@
+"""A scene -> an SSP 1.0 package (.ssp): `export_ssp(scene, out)`, `featherstar export-ssp`.
+
+The package is a zip holding SystemStructure.ssd and, under resources/, one FMU per FMU block:
+a model block's FMU is built (FMI 3.0, or 2.0 for older importers), an FMU file is copied. In
+SystemStructure.ssd every FMU block is an ssd:Component with its ports as connectors and the
+parameter values the run would use as an inline ssv:ParameterSet; connections between FMU
+blocks are ssd:Connections.
+
+Blocks SSP has no component type for (the stroke controller, constants, gains, recorders,
+Python blocks) stay featherstar blocks: they are written, with the master and metrics settings,
+in an ssc:Annotation of type `org.featherstar.scene` (JSON). Where such a block drives an FMU
+input, the system gets an input connector named "block.port" (and an output connector where an
+FMU output drives such a block), so the FMU part of the system is complete standard SSP that
+OMSimulator or libcosim can run with the inputs supplied their way, and `featherstar run x.ssp`
+(featherstar.cosim.ssp.read) puts the same scene back together.
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+import shutil
+import tempfile
+import xml.etree.ElementTree as ET
+import zipfile
+from pathlib import Path
+from typing import Any, Callable, Mapping
+
+from ..errors import SceneError
+from ..scene.blocks import ResolvedBlock
+from ..scene.data import MasterSpec, MetricsSpec, Scene
+from ..scene.graph import plan as make_plan
+from .read import FEATHERSTAR_ANNOTATION, FMU_TYPE, NS, SSD_NAME
+
+for _prefix, _uri in NS.items():
+    ET.register_namespace(_prefix, _uri)
+
+
+def _q(prefix: str, tag: str) -> str:
+    return f"{{{NS[prefix]}}}{tag}"
+
+
+def _number(value: float) -> str:
+    return repr(float(value))
+
+
+def export_ssp(scene: Scene, out: Path, overrides: Mapping[str, Any] | None = None, *,
+               fmi_version: int = 3, progress: Callable[[str], None] | None = None) -> Path:
+    """Write `scene` (with "block.key" overrides) as the SSP package `out`; returns its path.
+    `progress` hears about each FMU as it is built or copied (a build can take a minute).
+
+    Raises SceneError for a scene that does not validate, BuildError when an FMU cannot be built.
+    """
+    scene = scene.with_overrides(overrides)
+    plan = make_plan(scene)
+    fmu_blocks = [name for name in scene.block_names
+                  if plan.blocks[name].model is not None or plan.blocks[name].fmu_path is not None]
+    if not fmu_blocks:
+        raise SceneError(f"scene '{scene.name}' has no FMU blocks: an SSP package would hold no component")
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(prefix="featherstar-ssp-") as tmp:
+        work = Path(tmp)
+        sources = {}
+        for name in fmu_blocks:
+            if progress is not None:
+                progress(f"FMU of block '{name}'")
+            sources[name] = _fmu_file(plan.blocks[name], work, fmi_version)
+        ssd = _system_structure(scene, plan.blocks, sources)
+        (work / SSD_NAME).write_text(ssd, encoding="utf-8")
+        partial = out.with_name(f".{out.name}.part")
+        with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as archive:
+            archive.write(work / SSD_NAME, SSD_NAME)
+            for archived in sorted(sources.values()):
+                archive.write(work / archived, archived)
+        partial.replace(out)
+    return out
+
+
+def _fmu_file(rb: ResolvedBlock, work: Path, fmi_version: int) -> str:
+    """Put the block's FMU under work/resources/; returns its path inside the package."""
+    target = work / "resources" / f"{rb.name}.fmu"
+    target.parent.mkdir(exist_ok=True)
+    if rb.model is not None:
+        from ...fmu_src.export import build_fmu
+
+        shutil.copyfile(build_fmu(rb.model, fmi_version=fmi_version), target)
+    else:
+        shutil.copyfile(rb.fmu_path, target)
+    return f"resources/{target.name}"
+
+
+def _parameter_values(rb: ResolvedBlock) -> dict[str, float]:
+    """What the run would set: every model parameter (defaults under the scene's values); for an
+    FMU file, the values the scene sets (its other start values stay in the FMU)."""
+    if rb.model is None:
+        return dict(rb.parameters)
+    values = rb.model.default_parameters()
+    values.update(rb.parameters)
+    return values
+
+
+def _system_structure(scene: Scene, blocks: dict[str, ResolvedBlock], sources: dict[str, str]) -> str:
+    root = ET.Element(_q("ssd", "SystemStructureDescription"), {"version": "1.0", "name": scene.name})
+    system = ET.SubElement(root, _q("ssd", "System"), {"name": scene.name})
+    if scene.description:
+        system.set("description", scene.description)
+    in_ssp = set(sources)
+    system_connectors: list[tuple[str, str]] = []  # (name, kind)
+    ssd_connections: list[dict[str, str]] = []
+    featherstar_connections: list[str] = []
+    for connection in scene.connections:
+        src, dst = connection.src, connection.dst
+        if src.block in in_ssp and dst.block in in_ssp:
+            ssd_connections.append({"startElement": src.block, "startConnector": src.port,
+                                    "endElement": dst.block, "endConnector": dst.port})
+        elif dst.block in in_ssp:  # a featherstar block drives an FMU input
+            system_connectors.append((str(src), "input"))
+            ssd_connections.append({"startConnector": str(src), "endElement": dst.block, "endConnector": dst.port})
+        elif src.block in in_ssp:  # an FMU output drives a featherstar block
+            system_connectors.append((str(dst), "output"))
+            ssd_connections.append({"startElement": src.block, "startConnector": src.port, "endConnector": str(dst)})
+        else:
+            featherstar_connections.append(str(connection))
+    if system_connectors:
+        connectors = ET.SubElement(system, _q("ssd", "Connectors"))
+        for name, kind in dict.fromkeys(system_connectors):
+            connector = ET.SubElement(connectors, _q("ssd", "Connector"), {"name": name, "kind": kind})
+            ET.SubElement(connector, _q("ssc", "Real"))
+
+    elements = ET.SubElement(system, _q("ssd", "Elements"))
+    for name, source in sources.items():
+        _component(elements, blocks[name], source)
+    if ssd_connections:
+        connections = ET.SubElement(system, _q("ssd", "Connections"))
+        for attributes in ssd_connections:
+            ET.SubElement(connections, _q("ssd", "Connection"), attributes)
+
+    annotations = ET.SubElement(system, _q("ssd", "Annotations"))
+    annotation = ET.SubElement(annotations, _q("ssc", "Annotation"), {"type": FEATHERSTAR_ANNOTATION})
+    ET.SubElement(annotation, _q("fs", "Scene"), {"format": "json"}).text = json.dumps(
+        _featherstar_part(scene, in_ssp, featherstar_connections), indent=1, sort_keys=True)
+
+    master = scene.master
+    if master.t_end_s > 0:  # a run measured in stroke periods has no fixed stop time
+        ET.SubElement(root, _q("ssd", "DefaultExperiment"), {"startTime": "0.0", "stopTime": _number(master.t_end_s)})
+    ET.indent(root, space="  ")
+    return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode")
+
+
+def _component(elements: ET.Element, rb: ResolvedBlock, source: str) -> None:
+    component = ET.SubElement(elements, _q("ssd", "Component"),
+                              {"name": rb.name, "type": FMU_TYPE, "source": source})
+    if rb.spec.description:
+        component.set("description", rb.spec.description)
+    connectors = ET.SubElement(component, _q("ssd", "Connectors"))
+    values = _parameter_values(rb)
+    for kind, ports in (("input", rb.inputs), ("output", rb.outputs), ("parameter", dict.fromkeys(values))):
+        for port in ports:
+            connector = ET.SubElement(connectors, _q("ssd", "Connector"), {"name": port, "kind": kind})
+            ET.SubElement(connector, _q("ssc", "Real"))
+    if not values:
+        return
+    bindings = ET.SubElement(component, _q("ssd", "ParameterBindings"))
+    binding = ET.SubElement(bindings, _q("ssd", "ParameterBinding"))
+    holder = ET.SubElement(binding, _q("ssd", "ParameterValues"))
+    parameter_set = ET.SubElement(holder, _q("ssv", "ParameterSet"), {"version": "1.0", "name": rb.name})
+    parameters = ET.SubElement(parameter_set, _q("ssv", "Parameters"))
+    for name, value in values.items():
+        parameter = ET.SubElement(parameters, _q("ssv", "Parameter"), {"name": name})
+        ET.SubElement(parameter, _q("ssv", "Real"), {"value": _number(value)})
+
+
+def _featherstar_part(scene: Scene, in_ssp: set[str], connections: list[str]) -> dict[str, Any]:
+    """What only featherstar reads back: its own blocks, their connections, master and metrics."""
+    blocks = {}
+    for block in scene.blocks:
+        if block.name in in_ssp:
+            continue
+        table = {"kind": block.kind, **block.settings.to_plain()}
+        if block.description:
+            table["description"] = block.description
+        blocks[block.name] = table
+    # Each block kind applies --set values its own way (a stroke's period_s scales its times):
+    # they go back as the same overrides, applied to the same settings.
+    overrides = {f"{b.name}.{key}": value for b in scene.blocks if b.name not in in_ssp
+                 for key, value in b.overrides.to_plain().items()}
+
+    def changed(spec: Any, default: Any) -> dict[str, Any]:
+        return {k: v for k, v in dataclasses.asdict(spec).items() if v != getattr(default, k)}
+
+    return {
+        "description": scene.description,
+        "blocks": blocks,
+        "connections": connections,
+        "overrides": overrides,
+        "aliases": scene.aliases.to_plain(),
+        "master": changed(scene.master, MasterSpec()),
+        "metrics": changed(scene.metrics, MetricsSpec()),
+    }
+

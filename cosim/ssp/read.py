@@ -1,0 +1,383 @@
+"""An SSP 1.0 package (.ssp) -> scene data: `read_ssp(path)`, which `load_scene` turns into a Scene
+for .ssp files (this module does not import featherstar.cosim.scene.data: the door opens one way).
+
+What is mapped: the system's ssd:Components of type application/x-fmu-sharedlibrary (FMI 2.0
+or 3.0 FMUs in the package) become `fmu` blocks; ssd:Connections between their connectors
+become connections; parameter values bound inline (ssd:ParameterValues) or from .ssv files in the
+package, at system level ("component.parameter") or component level, become the blocks'
+parameters; ssd:DefaultExperiment's stopTime becomes master.t_end_s. A package written by
+`featherstar export-ssp` also carries an `org.featherstar.scene` annotation with the
+blocks SSP has no component type for, the master and metrics settings; system connectors named
+"block.port" connect those blocks. System outputs fed by components are recorded.
+
+What featherstar cannot map is refused, naming the element: nested systems, signal
+dictionaries, non-FMU components, parameter mappings, connection transformations (unit,
+linear, boolean, integer, enumeration mappings), non-numeric parameter values, system inputs
+nothing drives, a start time other than 0. Other annotations and geometry are ignored.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import shutil
+import tempfile
+import xml.etree.ElementTree as ET
+import zipfile
+from pathlib import Path, PurePosixPath
+from typing import Any
+
+from ..errors import SceneError
+
+NS = {
+    "ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
+    "ssc": "http://ssp-standard.org/SSP1/SystemStructureCommon",
+    "ssv": "http://ssp-standard.org/SSP1/SystemStructureParameterValues",
+    "ssm": "http://ssp-standard.org/SSP1/SystemStructureParameterMapping",
+    "ssb": "http://ssp-standard.org/SSP1/SystemStructureSignalDictionary",
+    "fs": "https://featherstar.org/ssp/1",
+}
+SSD_NAME = "SystemStructure.ssd"
+FMU_TYPE = "application/x-fmu-sharedlibrary"
+PARAMETER_SET_TYPE = "application/x-ssp-parameter-set"
+FEATHERSTAR_ANNOTATION = "org.featherstar.scene"
+#: The recorder that records the system's outputs (connectors of kind output fed by components).
+OUTPUTS_RECORDER = "system_outputs"
+
+_PREFIX_OF = {uri: prefix for prefix, uri in NS.items()}
+_IGNORED = {"ElementGeometry", "ConnectorGeometry", "ConnectionGeometry", "GraphicalElements", "Units",
+            "Enumerations", "Annotations"}
+
+
+def _q(prefix: str, tag: str) -> str:
+    return f"{{{NS[prefix]}}}{tag}"
+
+
+def _name(element: ET.Element) -> str:
+    """'ssd:Connection' for {uri-of-ssd}Connection: how the SSP standard names elements."""
+    if not element.tag.startswith("{"):
+        return element.tag
+    uri, _, local = element.tag[1:].partition("}")
+    return f"{_PREFIX_OF.get(uri, uri)}:{local}"
+
+
+def is_ssp(path: str | Path) -> bool:
+    return str(path).lower().endswith(".ssp")
+
+
+def read_ssp(path: str | Path) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The scene an SSP package describes, as scene data (featherstar.cosim.scene.data.scene_from_dict) and the
+    overrides its parameter bindings make. Raises SceneError naming what cannot be mapped."""
+    path = Path(path)
+    where = f"SSP package '{path}'"
+    if not path.is_file():
+        raise SceneError(f"{where}: no such file")
+    folder = _unpack(path, where)
+    ssd_path = folder / SSD_NAME
+    if not ssd_path.is_file():
+        raise SceneError(f"{where}: no {SSD_NAME} at the top of the package")
+    try:
+        root = ET.parse(ssd_path).getroot()
+    except ET.ParseError as exc:
+        raise SceneError(f"{where}: {SSD_NAME} is not well-formed XML ({exc})") from None
+    reader = _SystemReader(folder, where)
+    data, overrides = reader.read(root)
+    if reader.problems:
+        raise SceneError(reader.problems, data.get("name", path.stem))
+    return data, overrides
+
+
+def _unpack(path: Path, where: str) -> Path:
+    """Unzip once into the cache, keyed by the package's content; FMU paths stay valid after the
+    call (a run loads its FMUs later)."""
+    from ...fmu_src.export import cache_dir
+
+    digest = hashlib.sha256(path.read_bytes()).hexdigest()[:16]
+    target = cache_dir() / "ssp" / f"{path.stem}-{digest}"
+    if target.is_dir():
+        return target
+    try:
+        archive = zipfile.ZipFile(path)
+    except zipfile.BadZipFile:
+        raise SceneError(f"{where}: not a zip archive (an .ssp is a zip with {SSD_NAME} at its top)") from None
+    with archive:
+        for member in archive.namelist():
+            parts = PurePosixPath(member).parts
+            if PurePosixPath(member).is_absolute() or ".." in parts:
+                raise SceneError(f"{where}: archive member '{member}' points outside the package")
+        target.parent.mkdir(parents=True, exist_ok=True)
+        staging = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
+        try:
+            archive.extractall(staging)
+            os.replace(staging, target)
+        except OSError:
+            shutil.rmtree(staging, ignore_errors=True)
+            if not target.is_dir():  # not a concurrent unpacker that got there first
+                raise
+    return target
+
+
+class _SystemReader:
+    """Reads SystemStructure.ssd into scene data, collecting every problem (`problems`)."""
+
+    def __init__(self, folder: Path, where: str) -> None:
+        self.folder = folder
+        self.where = where
+        self.problems: list[str] = []
+
+    def refuse(self, message: str) -> None:
+        self.problems.append(message)
+
+    def read(self, root: ET.Element) -> tuple[dict[str, Any], dict[str, Any]]:
+        if root.tag != _q("ssd", "SystemStructureDescription"):
+            self.refuse(f"the root element of {SSD_NAME} is {_name(root)}, not ssd:SystemStructureDescription "
+                        f"(namespace {NS['ssd']})")
+            return {}, {}
+        data: dict[str, Any] = {"name": root.get("name") or "ssp"}
+        systems = root.findall(_q("ssd", "System"))
+        if len(systems) != 1:
+            self.refuse(f"ssd:SystemStructureDescription '{data['name']}' must hold one ssd:System, not {len(systems)}")
+            return data, {}
+        t_end_s = self._default_experiment(root.find(_q("ssd", "DefaultExperiment")))
+        data, overrides = self._system(systems[0], data)
+        if t_end_s is not None:
+            data.setdefault("master", {}).setdefault("t_end_s", t_end_s)
+        return data, overrides
+
+    def _default_experiment(self, experiment: ET.Element | None) -> float | None:
+        if experiment is None:
+            return None
+        start = self._float(experiment, "startTime", "ssd:DefaultExperiment", 0.0)
+        if start not in (None, 0.0):
+            self.refuse(f"ssd:DefaultExperiment startTime = {experiment.get('startTime')}: featherstar runs "
+                        "start at t = 0")
+        stop = self._float(experiment, "stopTime", "ssd:DefaultExperiment", None)
+        return stop
+
+    def _float(self, element: ET.Element, attribute: str, what: str, default: float | None) -> float | None:
+        text = element.get(attribute)
+        if text is None:
+            return default
+        try:
+            return float(text)
+        except ValueError:
+            self.refuse(f"{what} {attribute} = '{text}' is not a number")
+            return None
+
+    # --- the system ------------------------------------------------------------------------
+    def _system(self, system: ET.Element, data: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
+        label = f"ssd:System '{system.get('name', '')}'"
+        data["name"] = data["name"] or system.get("name")
+        if system.get("description"):
+            data["description"] = system.get("description")
+        extra, overrides = self._annotation(system.find(_q("ssd", "Annotations")))
+        blocks: dict[str, dict[str, Any]] = {}
+        parameters: dict[str, dict[str, float]] = {}
+        connectors: dict[str, str] = {}
+        for child in system:
+            local = _name(child)
+            if local == "ssd:Connectors":
+                connectors = self._connectors(child, label)
+            elif local == "ssd:Elements":
+                for element in child:
+                    self._element(element, blocks, parameters)
+            elif local in ("ssd:ParameterBindings", "ssd:Connections") or local.split(":")[-1] in _IGNORED:
+                continue
+            else:
+                self.refuse(f"{local} in {label}: featherstar cannot map it (only components, connectors, "
+                            "connections and parameter bindings)")
+        for name, value in self._bindings(system.find(_q("ssd", "ParameterBindings")), label).items():
+            component, dot, parameter = name.partition(".")
+            if not dot or component not in blocks:
+                self.refuse(f"parameter '{name}' bound in {label} names no component's parameter "
+                            f"(write 'component.parameter'; components: {', '.join(blocks) or 'none'})")
+                continue
+            parameters.setdefault(component, {})[parameter] = value
+        for component, values in parameters.items():
+            if component in blocks and values:
+                blocks[component]["parameters"] = values
+        own_blocks = extra.pop("blocks", {})
+        for name in own_blocks:
+            if name in blocks:
+                self.refuse(f"block '{name}' of the {FEATHERSTAR_ANNOTATION} annotation has the name of an ssd:Component")
+        blocks.update(own_blocks)
+        connections = list(extra.pop("connections", []))
+        outputs = []
+        for connection in system.iterfind(f"{_q('ssd', 'Connections')}/{_q('ssd', 'Connection')}"):
+            mapped = self._connection(connection, blocks, own_blocks, connectors)
+            if isinstance(mapped, tuple):
+                outputs.append(mapped[0])
+            elif mapped:
+                connections.append(mapped)
+        if outputs and OUTPUTS_RECORDER not in blocks:
+            blocks[OUTPUTS_RECORDER] = {"kind": "recorder", "signals": outputs}
+        data.update(extra)
+        data["blocks"] = blocks
+        data["connections"] = connections
+        return data, overrides
+
+    def _annotation(self, annotations: ET.Element | None) -> tuple[dict[str, Any], dict[str, Any]]:
+        if annotations is None:
+            return {}, {}
+        for annotation in annotations.iterfind(_q("ssc", "Annotation")):
+            if annotation.get("type") != FEATHERSTAR_ANNOTATION:
+                continue  # other tools' annotations are theirs
+            content = annotation.find(_q("fs", "Scene"))
+            try:
+                extra = json.loads(content.text or "") if content is not None else None
+            except json.JSONDecodeError as exc:
+                self.refuse(f"ssc:Annotation '{FEATHERSTAR_ANNOTATION}': fs:Scene is not valid JSON ({exc})")
+                return {}, {}
+            if not isinstance(extra, dict):
+                self.refuse(f"ssc:Annotation '{FEATHERSTAR_ANNOTATION}' must hold an fs:Scene JSON object")
+                return {}, {}
+            return extra, dict(extra.pop("overrides", {}))
+        return {}, {}
+
+    def _connectors(self, connectors: ET.Element, label: str) -> dict[str, str]:
+        kinds = {}
+        for connector in connectors.iterfind(_q("ssd", "Connector")):
+            name, kind = connector.get("name"), connector.get("kind")
+            if not name or kind not in ("input", "output", "parameter", "calculatedParameter", "inout"):
+                self.refuse(f"ssd:Connector '{name}' of {label} needs a name and a kind "
+                            "(input, output, parameter, calculatedParameter)")
+                continue
+            kinds[name] = kind
+        return kinds
+
+    # --- components ------------------------------------------------------------------------
+    def _element(self, element: ET.Element, blocks: dict[str, Any], parameters: dict[str, Any]) -> None:
+        kind, name = _name(element), element.get("name", "")
+        if kind != "ssd:Component":
+            self.refuse(f"{kind} '{name}': featherstar maps a flat system of FMU components only "
+                        "(no nested systems or signal dictionaries)")
+            return
+        label = f"ssd:Component '{name}'"
+        if not name or "." in name:
+            self.refuse(f"{label}: a component needs a name without '.'")
+            return
+        component_type = element.get("type", FMU_TYPE)
+        if component_type != FMU_TYPE:
+            self.refuse(f"{label} has type '{component_type}': featherstar runs FMU components ({FMU_TYPE}) only")
+            return
+        source = self._package_file(element.get("source"), f"{label} source")
+        if source is None:
+            return
+        block: dict[str, Any] = {"kind": "fmu", "fmu": str(source)}
+        if element.get("description"):
+            block["description"] = element.get("description")
+        for child in element:
+            local = _name(child)
+            if local == "ssd:ParameterBindings":
+                parameters.setdefault(name, {}).update(self._bindings(child, label))
+            elif local != "ssd:Connectors" and local.split(":")[-1] not in _IGNORED:
+                self.refuse(f"{local} in {label}: featherstar cannot map it")
+        blocks[name] = block
+
+    def _package_file(self, reference: str | None, what: str) -> Path | None:
+        if not reference:
+            self.refuse(f"{what} is missing")
+            return None
+        relative = PurePosixPath(reference.removeprefix("./"))
+        if ":" in reference or relative.is_absolute() or ".." in relative.parts:
+            self.refuse(f"{what} '{reference}' is not a file inside the package")
+            return None
+        path = self.folder / relative
+        if not path.is_file():
+            self.refuse(f"{what} '{reference}' is not in the package")
+            return None
+        return path
+
+    # --- parameters ------------------------------------------------------------------------
+    def _bindings(self, bindings: ET.Element | None, label: str) -> dict[str, float]:
+        values: dict[str, float] = {}
+        if bindings is None:
+            return values
+        for binding in bindings.iterfind(_q("ssd", "ParameterBinding")):
+            what = f"ssd:ParameterBinding of {label}"
+            if binding.get("type", PARAMETER_SET_TYPE) != PARAMETER_SET_TYPE:
+                self.refuse(f"{what} has type '{binding.get('type')}': only {PARAMETER_SET_TYPE} (.ssv) is read")
+                continue
+            if binding.get("sourceBase", "SSD") != "SSD":
+                self.refuse(f"{what} has sourceBase = '{binding.get('sourceBase')}': only files of the package "
+                            "(sourceBase = SSD) are read")
+                continue
+            if binding.find(_q("ssd", "ParameterMapping")) is not None:
+                self.refuse(f"ssd:ParameterMapping in the {what}: parameter mappings are not supported")
+                continue
+            inline = binding.find(f"{_q('ssd', 'ParameterValues')}/{_q('ssv', 'ParameterSet')}")
+            if inline is None and binding.get("source"):
+                path = self._package_file(binding.get("source"), f"{what} source")
+                if path is None:
+                    continue
+                try:
+                    inline = ET.parse(path).getroot()
+                except ET.ParseError as exc:
+                    self.refuse(f"{what}: '{binding.get('source')}' is not well-formed XML ({exc})")
+                    continue
+            if inline is None or inline.tag != _q("ssv", "ParameterSet"):
+                self.refuse(f"{what} holds no ssv:ParameterSet (inline in ssd:ParameterValues or as source)")
+                continue
+            prefix = binding.get("prefix", "")
+            for name, value in self._parameter_set(inline, what).items():
+                if name.startswith(prefix):
+                    values[name[len(prefix):]] = value
+        return values
+
+    def _parameter_set(self, parameter_set: ET.Element, what: str) -> dict[str, float]:
+        values = {}
+        for parameter in parameter_set.iterfind(f"{_q('ssv', 'Parameters')}/{_q('ssv', 'Parameter')}"):
+            name = parameter.get("name", "")
+            typed = [child for child in parameter if _name(child) != "ssd:Annotations"]
+            kind = _name(typed[0]) if typed else "nothing"
+            if kind not in ("ssv:Real", "ssv:Integer"):
+                self.refuse(f"ssv:Parameter '{name}' in the {what} is {kind}: featherstar sets Real and Integer "
+                            "parameter values only")
+                continue
+            if typed[0].get("unit"):
+                self.refuse(f"ssv:Parameter '{name}' in the {what} has unit '{typed[0].get('unit')}': featherstar "
+                            "does not convert parameter units (give the value in the FMU's unit, without unit)")
+                continue
+            number = self._float(typed[0], "value", f"ssv:Parameter '{name}' in the {what}", None)
+            if number is not None:
+                values[name] = number
+        return values
+
+    # --- connections -----------------------------------------------------------------------
+    def _connection(self, connection: ET.Element, blocks: dict[str, Any], own: dict[str, Any],
+                    connectors: dict[str, str]) -> str | tuple[str] | None:
+        start = (connection.get("startElement"), connection.get("startConnector"))
+        end = (connection.get("endElement"), connection.get("endConnector"))
+        label = f"ssd:Connection {'.'.join(filter(None, start)) or '?'} -> {'.'.join(filter(None, end)) or '?'}"
+        if not start[1] or not end[1]:
+            self.refuse(f"{label} needs a startConnector and an endConnector")
+            return None
+        for child in connection:
+            if _name(child) != "ssd:ConnectionGeometry":
+                self.refuse(f"{_name(child)} on the {label}: featherstar connects ports one to one, without "
+                            "transformations (put a gain block into a featherstar scene instead)")
+                return None
+        for element, _ in (start, end):
+            if element is not None and element not in blocks:
+                self.refuse(f"{label} names element '{element}', which is not a component of the system")
+                return None
+        src = self._endpoint(start, own, connectors, "input", label)
+        if end[0] is None and src and end[1].partition(".")[0] not in own and connectors.get(end[1]) == "output":
+            return (src,)  # a system output: recorded
+        dst = self._endpoint(end, own, connectors, "output", label)
+        return f"{src} -> {dst}" if src and dst else None
+
+    def _endpoint(self, endpoint: tuple[str | None, str], own: dict[str, Any], connectors: dict[str, str],
+                  system_kind: str, label: str) -> str | None:
+        element, connector = endpoint
+        if element is not None:
+            return f"{element}.{connector}"
+        block = connector.partition(".")[0]
+        if block in own:  # "block.port" of a featherstar block, through a system connector
+            return connector
+        if connectors.get(connector) != system_kind:
+            self.refuse(f"{label}: the system has no {system_kind} connector '{connector}'")
+        elif system_kind == "input":
+            self.refuse(f"{label}: system input '{connector}' is driven by nothing featherstar knows; a run "
+                        "needs a closed system (drive it from a component)")
+        return None

@@ -1,0 +1,182 @@
+"""The paper's online optimization on the test bed (Sec. II-D): a study whose evaluations are bench runs.
+
+Sequential (one bench): ask a stroke, run it on the devices (`featherstar.optimizer.bench.objective`),
+log it, tell it. The JSONL log (`featherstar.optimizer.log`) is the study's only state:
+
+    evaluation   one per index 0..n-1, exactly once: the measured TR and mean thrust
+    discarded    a run thrown away (deadline misses, data gaps; see bench_objective) and repeated
+    fault        a device fault that paused the study (the evaluation in flight is asked again)
+    estimate     the best posterior mean after each evaluation (Fig. 6)
+    validation   the optimum's and the baseline's validation runs, once each
+
+A device fault logs a `fault` record and raises `BenchFault` with the log intact; `resume=True`
+replays the log and continues: a logged evaluation or validation is never run again, and the
+point asked next is the one the uninterrupted study would have asked (the optimizer's randomness
+is seeded by the number of points told). With a `SimPrior`, the initial design is the simulated
+study's best strokes instead of random ones (see featherstar.optimizer.bench.sim_prior).
+"""
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+from typing import Any, Callable, Mapping
+
+from ..acquisition import DEFAULT_EXPLORATION_RATIO
+from ..bayes import DEFAULT_INITIAL_POINTS, OptimizationRun, StrokeOptimizer
+from ..errors import OptimizerError
+from ..evaluation import ITERATION_STREAM, MeasurementPlan, evaluate, validate
+from ..log import ExperimentLog
+from ..space import SearchSpace
+from ..study import (
+    BASELINE_VALIDATION_INDEX,
+    BEST_VALIDATION_INDEX,
+    study_summary,
+    validation_overrides,
+    write_study_outputs,
+)
+from .objective import DEFAULT_MAX_ATTEMPTS, BenchObjective, Retrying
+from .run import BenchFault
+from .sim_prior import SimPrior
+
+BENCH_VALIDATION_REPEATS = 10
+BENCH_VALIDATION_PERIODS = 5
+
+
+def run_bench_study(
+    bench: BenchObjective,
+    space: SearchSpace,
+    out_dir: str | Path,
+    *,
+    plan: MeasurementPlan,
+    iterations: int,
+    maximize: bool = True,
+    resume: bool = False,
+    n_initial_points: int = DEFAULT_INITIAL_POINTS,
+    exploration_ratio: float = DEFAULT_EXPLORATION_RATIO,
+    max_attempts: int = DEFAULT_MAX_ATTEMPTS,
+    validation_repeats: int = BENCH_VALIDATION_REPEATS,
+    validation_periods: int = BENCH_VALIDATION_PERIODS,
+    prior: SimPrior | None = None,
+    label: str = "feather",
+    compare: tuple[Mapping, ...] = (),
+    on_record: Callable[[dict], None] | None = None,
+) -> dict:
+    """Optimize the stroke on the bench, validate the optimum and the baseline there, and write
+    DIR/evaluations.jsonl, DIR/summary.json, Fig. 6 and Fig. 8 (marked as measured).
+
+    `plan` must read the bench's thrust as recorded (no added noise). `on_record` sees every new
+    log record (progress display). Raises BenchFault (study paused, resumable) on a device fault.
+    """
+    if iterations < n_initial_points:
+        raise OptimizerError(f"iterations = {iterations} must be >= n_initial_points = {n_initial_points}")
+    if plan.load_cell.noise_sd_N != 0:
+        raise OptimizerError("a bench study reads the real load cell: its plan must add no simulated noise")
+    for name, value in (("max_attempts", max_attempts), ("validation repeats", validation_repeats),
+                        ("validation periods", validation_periods)):
+        if value < 1:
+            raise OptimizerError(f"{name} = {value} must be >= 1")
+    out_dir = Path(out_dir)
+    header = {
+        "measured": True,
+        "bench": bench.describe(),
+        "space": space.describe(),
+        "maximize": maximize,
+        "measurement": plan.describe(),
+        "n_initial_points": n_initial_points,
+        "exploration_ratio": exploration_ratio,
+        "validation": {"repeats": validation_repeats, "periods": validation_periods},
+        "prior": None if prior is None else prior.describe(),
+    }
+    log = ExperimentLog.open(out_dir / "evaluations.jsonl", header, resume=resume)
+    study = _Study(log, on_record)
+    optimizer = StrokeOptimizer(space, maximize=maximize, n_initial_points=n_initial_points,
+                                exploration_ratio=exploration_ratio, seed=plan.seed)
+    initial = prior.initial_points(space, n_initial_points, maximize=maximize) if prior else []
+    evaluations = study.of_kind("evaluation")
+    if [r["index"] for r in evaluations] != list(range(len(evaluations))):
+        raise OptimizerError(f"{log.path}: evaluation indices are not 0..{len(evaluations) - 1} in order")
+    optimizer.tell_many([r["params"] for r in evaluations], [r["thrust_ratio"] for r in evaluations])
+    estimates = {r["index"]: r for r in study.of_kind("estimate")}
+    started = time.perf_counter()
+
+    for index in range(len(evaluations), iterations):
+        point = initial[index] if index < len(initial) else optimizer.ask()
+        proposal = optimizer.last_proposal if index >= len(initial) else None
+        where = {"index": index, "params": point}
+        result = study.measure(lambda objective: evaluate(objective, space.overrides(point), space.period_s, plan,
+                                                           ITERATION_STREAM, (index,)), bench, where, max_attempts)
+        if not math.isfinite(result.thrust_ratio):
+            raise OptimizerError(f"evaluation {index} at {point} measured TR = {result.thrust_ratio}: no negative "
+                                 "thrust in the window; check the load cell's sign and tare")
+        record = {"kind": "evaluation", **where, "overrides": space.overrides(point),
+                  "thrust_ratio": result.thrust_ratio, "mean_thrust_N": result.mean_thrust_N,
+                  "bench_wall_s": result.sim_wall_s, "from_prior": index < len(initial),
+                  "acquisition": None if proposal is None else {
+                      "retries": proposal.retries, "overexploiting": proposal.overexploiting,
+                      "sigma_f": proposal.sigma_f, "noise_sd": proposal.noise_sd}}
+        study.append(record)
+        evaluations.append(record)
+        optimizer.tell(point, result.thrust_ratio)
+        estimate = optimizer.best()
+        if estimate is not None:
+            estimates[index] = {"kind": "estimate", "index": index, "params": estimate.point,
+                                "thrust_ratio": estimate.value, "sd": estimate.sd}
+            study.append(estimates[index])
+    run = OptimizationRun(evaluations, [estimates.get(i) for i in range(len(evaluations))], optimizer,
+                          {"bench_s": time.perf_counter() - started})
+
+    validation_started = time.perf_counter()
+    validations = {r["controller"]: r for r in study.of_kind("validation")}
+    for controller, overrides, index in zip(("best", "baseline"), validation_overrides(space, run.best.point),
+                                            (BEST_VALIDATION_INDEX, BASELINE_VALIDATION_INDEX)):
+        if controller in validations:
+            continue
+        result = study.measure(lambda objective: validate(objective, overrides, space.period_s, plan, index,
+                                                          repeats=validation_repeats, periods=validation_periods),
+                               bench, {"validation": controller, "overrides": overrides}, max_attempts)
+        validations[controller] = {"kind": "validation", "controller": controller, "overrides": overrides,
+                                   **result.as_dict(), "bench_wall_s": result.sim_wall_s}
+        study.append(validations[controller])
+    summary = study_summary(space, run, validations["best"], validations["baseline"], maximize=maximize, plan=plan,
+                            repeats=validation_repeats, periods=validation_periods,
+                            validation_s=time.perf_counter() - validation_started,
+                            validation_simulation_s=0.0)
+    summary.update(label=label, measured=True, bench=bench.describe(),
+                   prior=None if prior is None else prior.describe(),
+                   discarded_runs=len(study.of_kind("discarded")), faults=len(study.of_kind("fault")))
+    write_study_outputs(out_dir, run, summary, label=label, compare=compare, measured=True)
+    return summary
+
+
+class _Study:
+    """The log plus the bookkeeping of discards and faults around one bench measurement."""
+
+    def __init__(self, log: ExperimentLog, on_record: Callable[[dict], None] | None) -> None:
+        self.log = log
+        self.on_record = on_record
+
+    def of_kind(self, kind: str) -> list[dict]:
+        return [r for r in self.log.records if r["kind"] == kind]
+
+    def append(self, record: dict) -> None:
+        self.log.append(record)
+        if self.on_record is not None:
+            self.on_record(record)
+
+    def measure(self, measurement: Callable[[Any], Any], bench: BenchObjective, where: dict,
+                max_attempts: int) -> Any:
+        """Run `measurement(objective)` on the bench, logging each discarded run; on a device
+        fault, log it and pause the study."""
+        def discarded(reasons: list[str], summary: Mapping[str, Any]) -> None:
+            self.append({"kind": "discarded", **where, "reasons": reasons,
+                         "deadline_misses": summary.get("deadline_misses"), "gaps": summary.get("gaps"),
+                         "worst_lateness_s": summary.get("worst_lateness_s")})
+
+        try:
+            return measurement(Retrying(bench, discarded, max_attempts))
+        except BenchFault as fault:
+            self.append({"kind": "fault", **where, "message": str(fault), "block": fault.block})
+            done = len(self.of_kind("evaluation"))
+            raise BenchFault(f"study paused: {fault}. The {done} evaluations so far are in {self.log.path}; "
+                             "fix the bench and rerun with --resume", block=fault.block, t_s=fault.t_s) from None

@@ -1,0 +1,158 @@
+"""`featherstar run` and `featherstar scenes`: run a scene (optionally with hardware blocks swapped
+in, featherstar.hil.hardware) and list the shipped scenes. Registered by featherstar.app."""
+from __future__ import annotations
+
+import argparse
+import contextlib
+import logging
+import signal
+import sys
+import tempfile
+import threading
+from pathlib import Path
+from typing import Iterator, Sequence
+
+from .terminal import EXIT_FOR_SIGNAL, one_line
+
+
+def _parse_set(items: Sequence[str]) -> dict[str, str]:
+    out: dict[str, str] = {}
+    for item in items or ():
+        key, eq, value = item.partition("=")
+        if not eq or not key.strip():
+            raise argparse.ArgumentTypeError(f"--set '{item}' must read BLOCK.PARAM=VALUE")
+        out[key.strip()] = value.strip()
+    return out
+
+
+def _check_out_dir(out: Path) -> None:
+    """Refuse an --out that cannot be written before the run, not after it."""
+    from .cosim.errors import SceneError
+
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=out, prefix=".featherstar-write-test"):
+            pass
+    except OSError as exc:
+        raise SceneError(f"--out {out}: cannot write there ({exc.strerror or exc})") from None
+
+
+@contextlib.contextmanager
+def _stop_signals() -> Iterator[None]:
+    """SIGINT/SIGTERM/SIGHUP stop the run once, as Ctrl-C does (so blocks are closed and the
+    servo commanded to its safe position); repeats while that happens are only reported, so a
+    second Ctrl-C cannot cut the safe stop short."""
+    from .cosim.errors import RunInterrupted
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    fired: list[str] = []
+
+    def handler(signum: int, _frame: object) -> None:
+        name = signal.Signals(signum).name
+        if fired:
+            print(f"featherstar: {name} received, still stopping safely", file=sys.stderr)
+            return
+        fired.append(name)
+        raise RunInterrupted(name)
+
+    names = [n for n in EXIT_FOR_SIGNAL if hasattr(signal, n)]
+    previous = {n: signal.signal(getattr(signal, n), handler) for n in names}
+    try:
+        yield
+    finally:
+        for n, h in previous.items():
+            signal.signal(getattr(signal, n), h)
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    from .cosim.errors import StepError
+    from .cosim.swimmer.report import summary_table, write_outputs
+    from .cosim.swimmer.run import run_scene
+
+    try:
+        overrides = _parse_set(args.set)
+    except argparse.ArgumentTypeError as exc:
+        print(f"featherstar run: {exc}", file=sys.stderr)
+        return 2
+    outputs = args.record.split(",") if args.record else None
+    if args.out:
+        _check_out_dir(args.out)
+    scene = args.scene
+    if args.hardware:
+        from .cosim.scenes import load_scene
+        from .hil.hardware import parse_hardware, with_hardware
+
+        # The hardware blocks report every fault themselves (one line, with device and time);
+        # pymodbus' own log of the same event would only bury it.
+        logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
+        scene = with_hardware(load_scene(args.scene), parse_hardware(args.hardware),
+                              allow_unactuated=args.allow_unactuated_loadcell)
+    try:
+        with _stop_signals():
+            result = run_scene(scene, overrides, outputs=outputs, progress=not args.quiet,
+                               strict_window=True)
+    except StepError as exc:
+        where = ""
+        if exc.partial is not None and args.out:
+            paths = write_outputs(exc.partial, args.out, figure=not args.no_figure)
+            where = f"; partial results up to t={exc.t_s:.6g} s in {paths['results'].parent}"
+        elif exc.partial is not None:
+            where = "; nothing kept (no --out)"
+        unsafe = [name for name, ok in ((exc.partial.summary if exc.partial else {})
+                                        .get("safe_position_confirmed") or {}).items() if not ok]
+        if unsafe:
+            where += f"; WARNING: {', '.join(unsafe)} did not acknowledge its safe position"
+        print(f"featherstar: error: {one_line(exc)}{where}", file=sys.stderr)
+        return EXIT_FOR_SIGNAL.get(exc.interrupted or "", 2)
+    print(summary_table(result.summary))
+    for note in result.info.get("notes", []):
+        print(f"  note: {note}")
+    if args.out:
+        paths = write_outputs(result, args.out, figure=not args.no_figure)
+        print(f"wrote {', '.join(str(p) for p in paths.values())}")
+    if not result.complete:
+        print(f"featherstar: error: run incomplete: {result.summary.get('incomplete_reason')}"
+              " (see the summary)", file=sys.stderr)
+        return 2
+    return 0
+
+
+def _cmd_scenes(args: argparse.Namespace) -> int:
+    from .cosim.scenes import list_scenes
+
+    rows = list_scenes()
+    width = max((len(n) for n, _ in rows), default=0)
+    for name, description in rows:
+        print(f"{name:<{width}}  {description}")
+    return 0
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Adds `run` and `scenes` to the featherstar command line."""
+    run = sub.add_parser("run", help="run a scene and summarise it (TR, mean thrust, speed)",
+                         description="Run a shipped scene (see `featherstar scenes`), a scene TOML file or an "
+                         "SSP 1.0 package (see `featherstar export-ssp`).")
+    run.add_argument("scene", help="scene name, path to a .toml file, or an SSP 1.0 package (.ssp)")
+    run.add_argument("--set", action="extend", nargs="+", default=[], metavar="BLOCK.PARAM=VALUE",
+                     help="override block parameters or options, or master.*/metrics.* (one or more per --set, "
+                          "repeatable), e.g. --set feather.morphology=spanwise controller.period_s=3 "
+                          "master.coupling=jacobi")
+    run.add_argument("--out", type=Path, help="write summary.json, results.csv and thrust.png here")
+    run.add_argument("--record", help="comma-separated signals to record instead of the scene's (block.port)")
+    run.add_argument("--no-figure", action="store_true", help="skip the figure")
+    run.add_argument("--hardware", action="append", default=[], metavar="SLOT=URL",
+                     help="swap a simulated block for hardware (repeatable): servo=URL, loadcell=URL, with "
+                          "URL modbus-tcp://HOST:PORT?unit=N or modbus-rtu:///dev/ttyUSB0?baudrate=...; the run "
+                          "is then paced on the wall clock (try it against `featherstar emulate`). URL "
+                          "options: unit=N, timeout_s=S (per request, default 0.05), reconnect_s=S (recover "
+                          "a lost device for up to S seconds; default: stop), safe_timeout_s=S (servo: retry the safe "
+                          "position on stop, default 5); see docs/hil.md")
+    run.add_argument("--allow-unactuated-loadcell", action="store_true",
+                     help="allow --hardware loadcell without --hardware servo (nothing physical then "
+                          "moves the feather the cell reads; the summary carries a warning)")
+    run.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    run.set_defaults(func=_cmd_run)
+    scenes = sub.add_parser("scenes", help="list the shipped scenes")
+    scenes.set_defaults(func=_cmd_scenes)
