@@ -59,9 +59,11 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--quick", action="store_true", help="about 10 s instead of 30 s")
+    parser.add_argument("--out", type=Path, default=RESULTS, help=f"where the JSON and plot go (default {RESULTS})")
     args = parser.parse_args()
     duration_s = 2.5 if args.quick else 8.0
-    RESULTS.mkdir(parents=True, exist_ok=True)
+    out = args.out
+    out.mkdir(parents=True, exist_ok=True)
     result: dict[str, object] = {
         "transactions_per_step": 3, "duration_s_per_rate": duration_s,
         "machine": {"cpus": os.cpu_count(), "load_avg_1min_at_start": os.getloadavg()[0],
@@ -95,8 +97,8 @@ def main() -> int:
         cell.close()
         emu.stop()
     result["machine"]["load_avg_1min_at_end"] = os.getloadavg()[0]
-    (RESULTS / "hil_loop_rate.json").write_text(json.dumps(result, indent=2) + "\n")
-    plot(result, step_ms)
+    (out / "hil_loop_rate.json").write_text(json.dumps(result, indent=2) + "\n")
+    plot(result, step_ms, out)
     for r in result["rates"]:
         print(f"{r['rate_hz']:4d} Hz: achieved {r['achieved_hz']:6.1f} Hz, misses "
               f"{r['n_misses']}/{r['n_samples']} ({100 * r['miss_fraction']:.2f} %), skipped "
@@ -105,11 +107,11 @@ def main() -> int:
     fr = result["free_running"]
     print(f"free running: {fr['steps_per_s']:.0f} steps/s, step p50/p99 "
           f"{fr['step_p50_ms']:.2f}/{fr['step_p99_ms']:.2f} ms")
-    print(f"wrote {RESULTS / 'hil_loop_rate.json'} and .png")
+    print(f"wrote {out / 'hil_loop_rate.json'} and .png")
     return 0
 
 
-def plot(result: dict, step_ms: dict[int, list[float]]) -> None:
+def plot(result: dict, step_ms: dict[int, list[float]], out: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     fig, (ax_cdf, ax_miss) = plt.subplots(1, 2, figsize=(9, 3.5))
@@ -127,7 +129,7 @@ def plot(result: dict, step_ms: dict[int, list[float]]) -> None:
     ax_miss.set_ylabel("deadline misses, % of steps")
     fig.suptitle("Paced HIL loop over loopback (servo write + read-back, load-cell read)")
     fig.tight_layout()
-    fig.savefig(RESULTS / "hil_loop_rate.png", dpi=110)
+    fig.savefig(out / "hil_loop_rate.png", dpi=110)
 
 
 if __name__ == "__main__":

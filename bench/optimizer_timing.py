@@ -74,6 +74,7 @@ def bench_sweep(objective, quick: bool) -> dict:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true")
+    parser.add_argument("--out", type=Path, default=RESULTS_DIR, help=f"where the JSON goes (default {RESULTS_DIR})")
     parser.add_argument("--scene", default="testbed", help="cosim scene of the single-feather test bed")
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                         help="scene override for every run (e.g. master.method=adams)")
@@ -97,7 +98,7 @@ def main() -> None:
         "sweep": bench_sweep(sweep_objective, args.quick),
     }
     # the stand-in's overhead numbers go beside, never over, the master's
-    results = RESULTS_DIR / ("optimizer_timing_synthetic.json" if args.synthetic else "optimizer_timing.json")
+    results = args.out / ("optimizer_timing_synthetic.json" if args.synthetic else "optimizer_timing.json")
     results.parent.mkdir(parents=True, exist_ok=True)
     results.write_text(json.dumps(report, indent=2) + "\n")
     print(json.dumps(report, indent=2))

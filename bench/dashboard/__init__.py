@@ -2,14 +2,15 @@
 
 The benchmarks are scripts in a repository checkout's `bench/` folder (they are not installed with
 the package): `find_bench_dir` looks for it from the current directory upwards. Outside a
-checkout (an installed package) only the dashboard's own measurements run, into ./bench-results. Each script runs as its own process (`--quick` passed through, `--out` where the
-script takes it; scripts that always write to bench/results have their new files copied), two at
+checkout (an installed package) only the dashboard's own measurements run, into ./bench-results.
+Each script runs as its own process (`--quick` passed through, `--out DIR` always: a script
+without --out is refused, so nothing writes outside DIR), two at
 a time on a 2-core machine, except the timing-sensitive HIL loop-rate bench, which runs alone.
 Their JSON is collected as is. What they do not measure, the dashboard measures itself, in one
 more process (`python -m featherstar.dashboard --measure`), side by side in that process:
 
 * the same ODE four ways: the co-simulation master (strong: ME FMU + CVODE; Jacobi: CS FMU at 1 ms),
-  the monolithic CasADi model (`featherstar.cosim.run_monolithic`: CVODES on CasADi's expression graph) and
+  the monolithic CasADi model (`featherstar.dashboard.monolithic.run_monolithic`: CVODES on CasADi's expression graph) and
   what a user would write instead: scipy `solve_ivp` (RK45, the default) calling the same CasADi
   equations from Python. Every timing is reported as a ratio to the monolithic model and to scipy;
 * cost growth with N (plain feather) and with the simulated duration;

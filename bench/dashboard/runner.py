@@ -1,7 +1,6 @@
 """Locating the bench/ scripts of a checkout and running them as processes, two at a time."""
 from __future__ import annotations
 
-import shutil
 import subprocess
 import sys
 import time
@@ -77,7 +76,6 @@ class Task:
     log: Path
     alone: bool = False
     expected_s: float = 60.0
-    writes_to: Path | None = None  # where the script writes when it takes no --out
     started: float = 0.0
     wall_s: float = 0.0
     returncode: int | None = None
@@ -85,26 +83,28 @@ class Task:
     outputs: list[str] = field(default_factory=list)
 
 
-def _takes_out(script: Path) -> bool:
-    return '"--out"' in script.read_text(errors="replace")
+def scripts_without_out(bench: Path) -> list[str]:
+    """Benchmark scripts with no --out option: the dashboard would have them write elsewhere
+    (into the checkout's committed docs/results), so it refuses to start while there are any."""
+    return [s.name for s in bench_scripts(bench) if '"--out"' not in s.read_text(encoding="utf-8", errors="replace")]
 
 
 def make_tasks(bench: Path | None, out: Path, quick: bool, measure: bool = True) -> list[Task]:
     """The checkout's bench scripts (none without a checkout) and the dashboard's own measurements."""
     tasks = []
     logs = out / "logs"
-    for script in bench_scripts(bench) if bench is not None else []:
+    scheduled = [s for s in (bench_scripts(bench) if bench is not None else [])
+                 if not (quick and PLANS.get(s.name, Plan()).quick_args is None)]
+    missing = [s.name for s in scheduled if s.name in scripts_without_out(s.parent)]
+    if missing:
+        raise BenchError(f"{', '.join(missing)}: no --out option; every benchmark script must write where "
+                         "the dashboard says (nothing outside --out)")
+    for script in scheduled:
         plan = PLANS.get(script.name, Plan())
-        if quick and plan.quick_args is None:
-            continue
         args = list(plan.quick_args if quick else plan.full_args)
-        writes_to = None
-        if _takes_out(script):
-            args += ["--out", str(out)]
-        else:
-            writes_to = bench / "results"
+        args += ["--out", str(out)]
         tasks.append(Task(script.stem, [sys.executable, str(script), *args], logs / f"{script.stem}.log",
-                          plan.alone, plan.expected_s, writes_to))
+                          plan.alone, plan.expected_s))
     if measure:
         argv = [sys.executable, "-m", __package__, "--measure", str(out)] + (["--quick"] if quick else [])
         tasks.append(Task("dashboard_measurements", argv, logs / "dashboard_measurements.log",
@@ -157,9 +157,5 @@ def run_tasks(tasks: list[Task], out: Path, *, jobs: int, timeout_s: float | Non
 def _collect(task: Task, out: Path) -> None:
     """The files this task wrote: new since it started and named after it (`<name>.json`,
     `<name>_*.json`, `<name>.png`...; benches running at the same time write other names)."""
-    source = task.writes_to if task.writes_to is not None else out
-    files = [f for f in _new_files(source, task.started) if f.stem == task.name or f.stem.startswith(task.name + "_")]
-    if source.resolve() != out.resolve():
-        for f in files:
-            shutil.copy2(f, out / f.name)
+    files = [f for f in _new_files(out, task.started) if f.stem == task.name or f.stem.startswith(task.name + "_")]
     task.outputs = sorted(f.name for f in files)

@@ -12,6 +12,11 @@ from featherstar.dashboard import BenchError, find_bench_dir, run_dashboard
 from featherstar.app import main
 
 
+#: The argument handling every benchmark script has (the dashboard passes --out, always).
+ARGS = "import argparse; p = argparse.ArgumentParser(); p.add_argument('--quick', action='store_true'); " \
+       "p.add_argument(\"--out\"); p.parse_args()\n"
+
+
 def test_bench_is_a_featherstar_command(capsys):
     with pytest.raises(SystemExit) as exit_:
         main(["bench", "--help"])
@@ -46,7 +51,7 @@ def test_runs_every_script_and_writes_one_report(tmp_path, monkeypatch):
     """)
     for name in ("alpha", "beta"):
         (bench / f"{name}.py").write_text(script.format(name=name))
-    (bench / "broken.py").write_text("raise SystemExit(3)\n")
+    (bench / "broken.py").write_text(ARGS + "raise SystemExit(3)\n")
     (bench / "dashboard.py").write_text("raise SystemExit('the dashboard must not run itself')\n")
     monkeypatch.chdir(bench)  # found from inside bench/ too
     report = run_dashboard(quick=True, out=tmp_path / "out", measure=False, log=lambda msg: None)
@@ -67,7 +72,7 @@ def test_quick_leaves_out_full_run_only_scripts_and_says_so(tmp_path, monkeypatc
     bench.mkdir(parents=True)
     (checkout / "pyproject.toml").write_text("[project]\nname = 'x'\n")
     (bench / "slow.py").write_text("raise SystemExit('a full-run-only script must not run in --quick')\n")
-    (bench / "fast.py").write_text("pass\n")
+    (bench / "fast.py").write_text(ARGS)
     monkeypatch.setitem(runner.PLANS, "slow.py", runner.Plan(None))
     monkeypatch.chdir(checkout)
     report = run_dashboard(quick=True, out=tmp_path / "out", measure=False, log=lambda msg: None)
@@ -75,3 +80,25 @@ def test_quick_leaves_out_full_run_only_scripts_and_says_so(tmp_path, monkeypatc
     assert report["full_run_only"] == ["slow.py"]
     md = (tmp_path / "out" / "dashboard.md").read_text()
     assert "| slow | not run: full runs only (`python bench/slow.py`)" in md
+
+
+def test_a_script_without_out_is_refused_before_anything_runs(tmp_path, monkeypatch):
+    """Nothing writes outside --out: a script that would write into the checkout stops the dashboard."""
+    checkout = tmp_path / "checkout"
+    bench = checkout / "bench"
+    bench.mkdir(parents=True)
+    (checkout / "pyproject.toml").write_text("[project]\nname = 'x'\n")
+    (bench / "good.py").write_text(ARGS + "open('ran', 'w')\n")
+    (bench / "writes_home.py").write_text("open('ran', 'w')\n")
+    monkeypatch.chdir(checkout)
+    with pytest.raises(BenchError, match="writes_home.py: no --out option"):
+        run_dashboard(quick=True, out=tmp_path / "out", measure=False, log=lambda msg: None)
+    assert not (checkout / "ran").exists() and not (bench / "ran").exists()
+
+
+def test_every_benchmark_of_this_checkout_takes_out():
+    from pathlib import Path
+
+    from featherstar.dashboard.runner import scripts_without_out
+
+    assert scripts_without_out(Path(__file__).resolve().parents[2] / "bench") == []
