@@ -54,6 +54,7 @@ PLANS: dict[str, Plan] = {
     "feather_speed.py": Plan(("--quick",), expected_s=150),
     "optimizer_speed.py": Plan(("--seeds", "1", "--iterations", "8"), expected_s=60),
     "me_weak_accuracy.py": Plan((), expected_s=30),
+    "mixed_coupling.py": Plan(("--quick",), expected_s=25),
     # minutes each even when reduced, or real time on the emulator: full runs only
     "flap_mechanisms.py": Plan(None, expected_s=240),
     "wake_memory.py": Plan(None, expected_s=600),   # its own --quick takes ~7 min

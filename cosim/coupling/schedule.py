@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Callable, Sequence
+from typing import Callable, Collection, Sequence
 
 import numpy as np
 
@@ -107,26 +107,28 @@ class Step:
 
 
 def topo_schedule(system: System, context: Context, units: Sequence[Unit], out_nodes: set[tuple[str, int]],
-                  skip_static: bool = False) -> list[Callable[[], None]]:
+                  skip_static: bool = False, held: Collection[str] = ()) -> list[Callable[[], None]]:
     """The Python ops of `schedule_steps` (same arguments)."""
-    return [step.run for step in schedule_steps(system, context, units, out_nodes, skip_static)]
+    return [step.run for step in schedule_steps(system, context, units, out_nodes, skip_static, held)]
 
 
 def schedule_steps(system: System, context: Context, units: Sequence[Unit], out_nodes: set[tuple[str, int]],
-                   skip_static: bool = False) -> list[Step]:
+                   skip_static: bool = False, held: Collection[str] = ()) -> list[Step]:
     """Steps that set every input of `units` and evaluate the outputs in `out_nodes` (plus the
     outputs those inputs need) in dependency order, loops solved by LoopSolver.
     skip_static: leave out constant blocks and the inputs they drive (set once at the start;
-    input values persist in every unit)."""
+    input values persist in every unit).
+    held: blocks whose outputs are held between communication points (the co-simulation units of
+    the mixed coupling): left out like constants, with the inputs they drive."""
+    fixed = {name for name, u in system.units.items() if (skip_static and u.static) or name in held}
     src_of: dict[tuple[str, int], tuple[str, int]] = {}
     for u in units:
         for i in range(len(u.input_names)):
             sb, k = system.source_of(u, i)
-            if skip_static and system.units[sb].static:
+            if sb in fixed:
                 continue
             src_of[(u.name, i)] = (sb, k)
-    if skip_static:
-        out_nodes = {(b, k) for b, k in out_nodes if not system.units[b].static}
+    out_nodes = {(b, k) for b, k in out_nodes if b not in fixed}
     need_out = set(out_nodes) | set(src_of.values())
     nodes: list[tuple[str, str, int]] = []
     edges: dict[tuple[str, str, int], list[tuple[str, str, int]]] = {}

@@ -34,6 +34,7 @@ from ..scene.guards import passive_energy_guards
 from ..scene.plan import Plan
 from .context import Context, Recording
 from .pacing import RealTimePacer
+from .mixed import MixedCoupling
 from .strong import StrongCoupling
 from .system import System
 from .weak import WeakCoupling
@@ -72,6 +73,8 @@ def build_units(plan: Plan) -> dict[str, Unit]:
 
 
 def _fmu_mode(coupling: str, info: Any, name: str) -> str:
+    if coupling == "mixed":   # the ODE takes every FMU it can
+        return "me" if info.has_me else "cs"
     if coupling == "strong":
         if not info.has_me:
             raise SceneError(f"block '{name}': the FMU has no Model Exchange interface, needed by "
@@ -106,11 +109,13 @@ class Simulator:
         guards = passive_energy_guards(self.units, {n: plan.blocks[n].passivity for n in self.units},
                                        self.master.passive_energy_factor, plan.period_s or 0.1 * plan.t_end_s)
         self.recording = Recording(requested, refs, guards, keep_rows=record, progress=progress)
-        self.coupling: StrongCoupling | WeakCoupling
+        self.coupling: StrongCoupling | MixedCoupling | WeakCoupling
+        pace = RealTimePacer(self.context) if self.master.realtime else None
         if self.master.coupling == "strong":
             self.coupling = StrongCoupling(self.system, self.context, self.recording)
+        elif self.master.coupling == "mixed":
+            self.coupling = MixedCoupling(self.system, self.context, self.recording, pace)
         else:
-            pace = RealTimePacer(self.context) if self.master.realtime else None
             self.coupling = WeakCoupling(self.system, self.context, self.recording, pace)
         self.started: list[Unit] = []
         self.initialized = False

@@ -49,7 +49,7 @@ from ..errors import SceneError
 from .blocks import block_kind
 from .specs import BlockSpec, Connection, FrozenMap, PortRef, parse_value
 
-COUPLINGS = ("strong", "jacobi", "gauss-seidel")
+COUPLINGS = ("strong", "mixed", "jacobi", "gauss-seidel", "auto")
 METHODS = ("bdf", "adams", "adams-fixedpoint")
 
 
@@ -59,7 +59,10 @@ class MasterSpec:
 
     coupling           strong: ME FMUs (and memoryless Python blocks) integrated together as one
                        ODE by CVODE; jacobi / gauss-seidel: blocks stepped as co-simulation
-                       units, inputs held (zero-order hold) over each macro step.
+                       units, inputs held (zero-order hold) over each macro step; mixed: the
+                       continuous blocks as one ODE, the blocks that can only step (CS-only
+                       FMUs, Python blocks with state) stepped every step_s around it; auto:
+                       strong, mixed or gauss-seidel, whichever the scene's blocks allow.
     method             CVODE method for strong coupling and for ME-only FMUs in weak coupling:
                        bdf (stiff) or adams (non-stiff).
     rtol, atol         tolerances of every error-controlled integrator (CVODE here; passed to
@@ -137,8 +140,8 @@ class MasterSpec:
             if not (math.isfinite(v) and v >= 0):
                 problems.append(f"master.{name} = {v!r} must be >= 0")
         if self.realtime and self.coupling == "strong":
-            problems.append("master.realtime needs a weak coupling (jacobi or gauss-seidel): hardware "
-                            "cannot be integrated inside one ODE")
+            problems.append("master.realtime needs communication steps (mixed, jacobi or gauss-seidel): "
+                            "hardware cannot be integrated inside one ODE")
         if self.start_at_rest and self.coupling != "strong":
             problems.append("master.start_at_rest needs master.coupling = strong: the state at rest is solved "
                             "on the coupled ODE")

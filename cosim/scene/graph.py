@@ -16,6 +16,8 @@ It then decides what the run needs:
 """
 from __future__ import annotations
 
+import dataclasses
+
 from typing import Iterable, Sequence
 
 from ..errors import SceneError
@@ -214,6 +216,8 @@ def plan(scene: Scene, outputs: Sequence[str] | None = None) -> Plan:
     if pruned:
         notes.append(f"not needed for the requested signals, not instantiated: {', '.join(pruned)}")
 
+    scene, coupling_note = _resolve_auto_coupling(scene, [resolved[n] for n in instantiate])
+    notes += coupling_note
     p = Plan(scene, resolved, instantiate, alias_of, source_of, requested, [], period, 0.0, pruned, notes)
     keep_used_outputs(p)
     p.loops = find_loops(p)
@@ -228,6 +232,9 @@ def plan(scene: Scene, outputs: Sequence[str] | None = None) -> Plan:
                 "re-evaluated for trial inputs (hardware or a block without can_iterate); break the loop "
                 "with a block whose output does not depend directly on its input (a filter or a delay)")
     problems.extend(_check_coupling(p))
+    if scene.master.coupling == "mixed" and scene.master.adaptive:
+        problems.append("master.adaptive controls the macro step of jacobi and gauss-seidel; the mixed coupling "
+                        "steps at master.step_s (set master.adaptive = false)")
     problems.extend(step_problems(p))
     master = scene.master
     if master.t_end_s > 0:
@@ -241,6 +248,25 @@ def plan(scene: Scene, outputs: Sequence[str] | None = None) -> Plan:
     return p
 
 
+def _resolve_auto_coupling(scene: Scene, blocks: Sequence[ResolvedBlock]) -> tuple[Scene, list[str]]:
+    """master.coupling = auto: strong when every block can join one ODE, mixed when some can and
+    some can only step (co-simulation-only FMUs, Python blocks with state), gauss-seidel when none
+    has continuous states; the scene then carries the chosen coupling, and a note says it."""
+    if scene.master.coupling != "auto":
+        return scene, []
+    computing = [rb for rb in blocks if not rb.records_only]
+    ode = [rb.name for rb in computing if rb.continuous]
+    stepped = [rb.name for rb in computing if not rb.continuous and not rb.memoryless]
+    if not stepped:
+        chosen, why = "strong", "every block joins one ODE"
+    elif ode:
+        chosen, why = "mixed", f"{', '.join(stepped)} only step{'s' if len(stepped) == 1 else ''}"
+    else:
+        chosen, why = "gauss-seidel", "no block has continuous states"
+    master = dataclasses.replace(scene.master, coupling=chosen)
+    return dataclasses.replace(scene, master=master), [f"master.coupling = auto: {chosen} ({why})"]
+
+
 def _check_coupling(p: Plan) -> list[str]:
     master = p.scene.master
     problems = []
@@ -249,10 +275,11 @@ def _check_coupling(p: Plan) -> list[str]:
         if master.coupling == "strong" and not rb.continuous:
             why = ("a co-simulation-only FMU" if rb.fmu_info is not None else "a Python block with state")
             problems.append(f"block '{n}' is {why}: it cannot be integrated in one ODE with the others "
-                            "(master.coupling = strong); use master.coupling = jacobi or gauss-seidel")
+                            "(master.coupling = strong); use master.coupling = mixed (the others stay one ODE), "
+                            "jacobi or gauss-seidel")
         if rb.fmu_info is not None and not (rb.fmu_info.has_me or rb.fmu_info.has_cs):
             problems.append(f"block '{n}': the FMU offers neither Model Exchange nor Co-Simulation")
-        if master.coupling != "strong" and master.adaptive and not rb.can_rollback:
+        if master.coupling in ("jacobi", "gauss-seidel") and master.adaptive and not rb.can_rollback:
             problems.append(f"block '{n}' cannot save and restore its state, which the adaptive macro step "
                             "needs to reject a step; set master.adaptive = false")
     return problems

@@ -34,7 +34,7 @@ SAMPLES_PER_RAMP = 25
 #: constant. Set when the test bed (servo load filter 5 ms) went unstable from 7-15 ms under
 #: Jacobi and 10-30 ms under Gauss-Seidel with the Morison feather; the energy-consistent feather
 #: stays bounded to 30-50 ms and beyond but is inaccurate past these steps (docs/stability.md).
-LOOP_STEP_PER_TIME_CONSTANT = {"jacobi": 1.0, "gauss-seidel": 2.0}
+LOOP_STEP_PER_TIME_CONSTANT = {"jacobi": 1.0, "gauss-seidel": 2.0, "mixed": 1.0}
 #: Gains below this are not judged (the feathers here hold 0.01-0.07 J).
 ENERGY_FLOOR_J = 1e-6
 
@@ -80,7 +80,7 @@ def step_problems(plan: "Plan") -> list[str]:
     if ramp is not None:
         ramp_s, where = ramp
         limit_s = ramp_s / SAMPLES_PER_RAMP
-        grids = [("output_interval_s", master.output_interval_s)] if master.coupling == "strong" else []
+        grids = [("output_interval_s", master.output_interval_s)] if master.coupling in ("strong", "mixed") else []
         if weak_fixed:
             grids.append(("step_s", master.step_s))
         for key, value in grids:
@@ -92,6 +92,8 @@ def step_problems(plan: "Plan") -> list[str]:
     if weak_fixed:
         factor = LOOP_STEP_PER_TIME_CONSTANT[master.coupling]
         for loop in feedback_loops(plan):
+            if master.coupling == "mixed" and all(plan.blocks[b].continuous or plan.blocks[b].memoryless for b in loop):
+                continue   # inside the mixed coupling's ODE: no step holds anything there
             fastest = _fastest_time_constant(plan, loop)
             if fastest is None:
                 continue
