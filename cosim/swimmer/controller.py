@@ -45,6 +45,7 @@ from typing import Any, Mapping
 
 from ...fmu_src.errors import ModelError
 from ..framework.block import Port, TimeSource
+from ..scene.settings import Setting
 from .stroke import Stroke, root_motion, root_motion_function, stroke_from_log_ratios
 
 TIME_KEYS = ("t_up_s", "t_hold_up_s", "t_down_s", "t_hold_down_s")
@@ -145,6 +146,28 @@ class StrokeController(TimeSource):
     @property
     def period_s(self) -> float:
         return self.stroke.period_s
+
+    def settings(self) -> list[Setting]:
+        """The keys --set takes on a stroke block, with this stroke's values (the period rule:
+        `period_s` alone scales the four times; the log ratios re-shape them at the same period)."""
+        s, c = self.stroke, self.command
+        up_down, hold_up_down, hold_move = s.log_ratios()
+        return [
+            Setting("t_up_s", s.t_up_s, "s", "(0, inf)", "rise (power stroke up)"),
+            Setting("t_hold_up_s", s.t_hold_up_s, "s", "[0, inf)", "hold at the top"),
+            Setting("t_down_s", s.t_down_s, "s", "(0, inf)", "fall"),
+            Setting("t_hold_down_s", s.t_hold_down_s, "s", "[0, inf)", "hold at the bottom"),
+            Setting("period_s", s.period_s, "s", "(0, inf)", "alone: scales the four times"),
+            Setting("amplitude_deg", s.amplitude_deg, "deg", "(0, 180]",
+                    f"peak to peak, centred on zero: {s.amplitude_deg:g} means +-{s.amplitude_deg / 2:g} deg"),
+            Setting("log10_up_down", up_down, "", "", "log10 t_up/t_down at the same period"),
+            Setting("log10_hold_up_down", hold_up_down, "", "", "log10 t_hold_up/t_hold_down"),
+            Setting("log10_hold_move", hold_move, "", "", "log10 (holds)/(moves)"),
+            Setting("sample_period_s", c.sample_period_s, "s", "[0, inf)",
+                    "send the command as samples this far apart (0: continuous)"),
+            Setting("rate_limit_rad_s", c.rate_limit_rad_s, "rad/s", "[0, inf)",
+                    "limit the sampled command's rate (0: none)"),
+        ]
 
     def evaluate(self, t_s: float, inputs: Mapping[str, float]) -> dict[str, float]:
         a, r, acc = self.outputs_at(t_s)

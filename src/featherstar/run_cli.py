@@ -122,10 +122,23 @@ def _cmd_run(args: argparse.Namespace) -> int:
 def _cmd_scenes(args: argparse.Namespace) -> int:
     from .cosim.scenes import list_scenes
 
+    if args.scene:
+        return _print_settings(args.scene, args.set)
     rows = list_scenes()
     width = max((len(n) for n, _ in rows), default=0)
     for name, description in rows:
         print(f"{name:<{width}}  {description}")
+    return 0
+
+
+def _print_settings(scene_ref: str, items: list[str]) -> int:
+    from .cosim.scene.graph import plan
+    from .cosim.scene.settings import format_settings, scene_settings
+    from .cosim.scenes import load_scene
+
+    scene = load_scene(scene_ref).with_overrides(_parse_set(items))
+    print(f"{scene.name}: every key --set takes (KEY  value unit  range  meaning)")
+    print(format_settings(scene_settings(plan(scene))))
     return 0
 
 
@@ -138,7 +151,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     run.add_argument("--set", action="extend", nargs="+", default=[], metavar="BLOCK.PARAM=VALUE",
                      help="override block parameters or options, or master.*/metrics.* (one or more per --set, "
                           "repeatable), e.g. --set feather.morphology=spanwise controller.period_s=3 "
-                          "master.coupling=jacobi")
+                          "master.coupling=jacobi; every key: featherstar scenes SCENE")
     run.add_argument("--out", type=Path, help="write summary.json, results.csv and thrust.png here")
     run.add_argument("--record", help="comma-separated signals to record instead of the scene's (block.port)")
     run.add_argument("--no-figure", action="store_true", help="skip the figure")
@@ -154,5 +167,12 @@ def register(sub: argparse._SubParsersAction) -> None:
                           "moves the feather the cell reads; the summary carries a warning)")
     run.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     run.set_defaults(func=_cmd_run)
-    scenes = sub.add_parser("scenes", help="list the shipped scenes")
+    scenes = sub.add_parser("scenes", help="list the shipped scenes, or every settable key of one",
+                            description="Without SCENE: the shipped scenes. With SCENE: every key `--set` takes "
+                            "on it (master.*, metrics.*, each block's parameters and build options) with its "
+                            "value, unit, range and meaning; --set shows them after overrides (a build "
+                            "option such as feather.morphology changes which parameters exist).")
+    scenes.add_argument("scene", nargs="?", help="a shipped scene name, a .toml file or an .ssp package")
+    scenes.add_argument("--set", action="extend", nargs="+", default=[], metavar="BLOCK.PARAM=VALUE",
+                        help="overrides to apply first (one or more per --set)")
     scenes.set_defaults(func=_cmd_scenes)
