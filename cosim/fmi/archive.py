@@ -1,6 +1,8 @@
-"""Checks of an FMU archive before its binary is loaded: a corrupt archive (a truncated binary
-inside an FMU crashes the process with a bus error when it is loaded; the zip's CRC catches it
-first), and a cached FMU that went bad (rebuilt once)."""
+"""Checks of an FMU archive before anything of it is read: its central directory within the bounds
+of featherstar.cosim.fmi.bounded_zip (member count and sizes, compression ratio, names inside
+the archive: a bomb is refused before its modelDescription.xml is read into memory), every
+member's CRC (a truncated download), and a cached FMU that went bad (rebuilt once). A binary
+that passes and still crashes is featherstar.cosim.fmi.probe's business."""
 from __future__ import annotations
 
 import logging
@@ -9,15 +11,19 @@ from pathlib import Path
 from typing import Any, Callable
 
 from ..errors import SceneError
+from .bounded_zip import check_zip
 
 log = logging.getLogger(__name__)
 
 
 def fmu_archive_problem(path: Path) -> str | None:
-    """Why the FMU archive at `path` is unusable (bad zip, failed CRC), or None."""
+    """Why the FMU archive at `path` is unusable (bad zip, out of bounds, failed CRC), or None."""
     try:
         with zipfile.ZipFile(path) as archive:
+            check_zip(archive, "archive")
             bad = archive.testzip()
+    except SceneError as exc:
+        return str(exc).removeprefix("archive: ")
     except (zipfile.BadZipFile, OSError, EOFError) as exc:
         return f"not a readable zip archive ({exc})"
     except Exception as exc:   # zlib errors on a truncated member, and the like

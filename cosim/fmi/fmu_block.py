@@ -22,14 +22,15 @@ from ctypes import CFUNCTYPE, c_bool, c_double, c_int, c_size_t, c_uint, c_void_
 from pathlib import Path
 from typing import Any, Callable, Sequence
 
-import fmpy
 from fmpy.fmi1 import FMICallException
 
 from ..errors import StepError
 from ..framework.block import Port
 from ..framework.units import FastPath, NativeCalls, Unit
+from .bounded_zip import extract_bounded
 from .fmu_info import FmuInfo, read_fmu_info
 from .fmu_values import TypedAccess, TypedPorts
+from .probe import probe_fmu
 
 STATUS = ["ok", "warning", "discard", "error", "fatal", "pending"]
 
@@ -113,9 +114,14 @@ class FmuUnit(Unit):
         if self._unzip is None:
             self._unzip = tempfile.mkdtemp(prefix=f"featherstar-{self.name}-")
             self._own_unzip = True
-            self._call("extract", lambda: fmpy.extract(str(info.path), self._unzip))
+            self._call("extract", lambda: extract_bounded(Path(info.path), Path(self._unzip), f"FMU '{info.path}'"))
         md = info.model_description
         iface = md.coSimulation if self.mode == "cs" else md.modelExchange
+        crash = probe_fmu(Path(info.path), self._unzip, md.guid, iface.modelIdentifier, info.fmi_version, self.mode)
+        if crash is not None:   # loading it here would take the master down with it
+            raise StepError(self.name, t0, f"FMU '{info.path}' {crash} when probed in a child process; "
+                            "featherstar does not load it", function="probe",
+                            cause="a faulty, truncated or incompatible binary")
         kw = dict(guid=md.guid, unzipDirectory=self._unzip, modelIdentifier=iface.modelIdentifier,
                   instanceName=self.name)
         if self.fmi3:
@@ -470,13 +476,6 @@ def _chain(fns: list[Callable[[], None] | None]) -> Callable[[], None]:
         first()
         second()
     return both
-
-
-def extract(path: Path) -> str:
-    """Unzip an FMU once; several instances of the same FMU can share the folder."""
-    folder = tempfile.mkdtemp(prefix="featherstar-fmu-")
-    fmpy.extract(str(path), folder)
-    return folder
 
 
 def model_fmu_info(model: Any, fmu_path: Path, block: str) -> FmuInfo:

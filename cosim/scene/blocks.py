@@ -22,6 +22,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import importlib
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Hashable, Mapping
@@ -235,10 +236,18 @@ class ConstantKind(BlockKind):
 
 # --- python -------------------------------------------------------------------------------------
 
+#: A reference to Python code, exactly the strings `_import` accepts: "package.module:name", dotted
+#: Python identifiers on both sides. Every kind imports through `_import`, from one string as the
+#: scene wrote it; so a package (featherstar.cosim.ssp.code_refs refuses every string of this shape
+#: in one) can make featherstar import nothing.
+CODE_REFERENCE = re.compile(r"[^\W\d]\w*(?:\.[^\W\d]\w*)*:[^\W\d]\w*(?:\.[^\W\d]\w*)*")
+_BLOCK_METHODS = ("start", "set_inputs", "get_outputs", "do_step", "close")
+
+
 def _import(ref: str, where: str) -> Any:
-    module, colon, attr = ref.partition(":")
-    if not colon or not module or not attr:
+    if not CODE_REFERENCE.fullmatch(ref):
         raise SceneError(f"{where}: '{ref}' must read 'package.module:name'")
+    module, _, attr = ref.partition(":")
     try:
         obj = importlib.import_module(module)
     except ImportError as exc:
@@ -248,6 +257,24 @@ def _import(ref: str, where: str) -> Any:
             raise SceneError(f"{where}: module '{module}' has no '{attr}'")
         obj = getattr(obj, part)
     return obj
+
+
+def featherstar_block_class(ref: str) -> bool:
+    """Whether `ref` names one of featherstar's own block classes (featherstar.hil.blocks:Servo,
+    featherstar.optimizer.calibration.playback:RecordedRoot): a public class of a public module of
+    the featherstar package (no name part starting with '_': never featherstar.__main__) with the
+    Block methods. Deciding it imports that featherstar module, which runs featherstar's code only."""
+    if not CODE_REFERENCE.fullmatch(ref):
+        return False
+    module, _, attr = ref.partition(":")
+    parts = [*module.split("."), *attr.split(".")]
+    if parts[0] != "featherstar" or "." not in module or any(p.startswith("_") for p in parts):
+        return False
+    try:
+        obj = _import(ref, ref)
+    except SceneError:
+        return False
+    return isinstance(obj, type) and all(callable(getattr(obj, m, None)) for m in _BLOCK_METHODS)
 
 
 class PythonKind(BlockKind):

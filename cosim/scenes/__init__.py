@@ -25,13 +25,15 @@ def list_scenes() -> list[tuple[str, str]]:
     return out
 
 
-def load_scene(name_or_path: str | Path | Scene) -> Scene:
+def load_scene(name_or_path: str | Path | Scene, *, allow_code: bool = False) -> Scene:
     """A shipped scene by name ("testbed", "robot", "kinematic"), a TOML file by path, or an
-    SSP 1.0 package (.ssp, see featherstar.cosim.ssp.read)."""
+    SSP 1.0 package (.ssp, see featherstar.cosim.ssp.read; a package naming Python code other than
+    featherstar's own blocks is refused unless `allow_code`). A TOML file is the user's own and may
+    name Python code."""
     if isinstance(name_or_path, Scene):
         return name_or_path
     if is_ssp(name_or_path):
-        data, overrides = read_ssp(name_or_path)
+        data, overrides = read_ssp(name_or_path, allow_code=allow_code)
         path = Path(name_or_path)
         return scene_from_dict(data, name=path.stem, source=str(path)).with_overrides(overrides)
     shipped = _shipped()

@@ -23,11 +23,12 @@ import os
 import shutil
 import tempfile
 import xml.etree.ElementTree as ET
-import zipfile
 from pathlib import Path, PurePosixPath
 from typing import Any
 
 from ..errors import SceneError
+from ..fmi.bounded_zip import extract_bounded
+from .code_refs import refuse_foreign_code
 
 NS = {
     "ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
@@ -65,14 +66,57 @@ def is_ssp(path: str | Path) -> bool:
     return str(path).lower().endswith(".ssp")
 
 
-def read_ssp(path: str | Path) -> tuple[dict[str, Any], dict[str, Any]]:
+def read_ssp(path: str | Path, *, allow_code: bool = False) -> tuple[dict[str, Any], dict[str, Any]]:
     """The scene an SSP package describes, as scene data (featherstar.cosim.scene.data.scene_from_dict) and the
-    overrides its parameter bindings make. Raises SceneError naming what cannot be mapped."""
+    overrides its parameter bindings make. Raises SceneError naming what cannot be mapped.
+
+    A package is data: its featherstar annotation may use featherstar's block kinds, featherstar's own
+    block classes and the FMUs inside it; any other reference to Python code (featherstar.cosim.ssp.
+    code_refs) is refused unless `allow_code` (`featherstar run x.ssp --allow-code`). The package is
+    unpacked within bounds (featherstar.cosim.fmi.bounded_zip) and kept in the cache only once read."""
     path = Path(path)
     where = f"SSP package '{path}'"
     if not path.is_file():
         raise SceneError(f"{where}: no such file")
-    folder = _unpack(path, where)
+    with open(path, "rb") as fh:
+        digest = hashlib.file_digest(fh, "sha256").hexdigest()[:16]
+    target = ssp_cache() / f"{path.stem}-{digest}"
+    if target.is_dir():   # unpacked and read before: the cache holds only packages that were read
+        return _read_folder(target, target, where, allow_code)
+    ssp_cache().mkdir(parents=True, exist_ok=True)
+    work = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=ssp_cache()))
+    staging = work / "package"
+    try:
+        extract_bounded(path, staging, where, quota=(ssp_cache(), ssp_cache_quota_bytes()))
+        data, overrides = _read_folder(staging, target, where, allow_code)
+        try:
+            os.replace(staging, target)
+        except OSError:
+            if not target.is_dir():  # not a concurrent reader that got there first
+                raise
+    finally:   # a refused package leaves nothing in the cache
+        shutil.rmtree(work, ignore_errors=True)
+    return data, overrides
+
+
+def ssp_cache() -> Path:
+    """Where packages are unpacked (FMU paths must stay valid after read_ssp: a run loads them later)."""
+    from ...fmu_src.export import cache_dir
+
+    return cache_dir() / "ssp"
+
+
+def ssp_cache_quota_bytes() -> int:
+    """What the package cache may hold in all: $FEATHERSTAR_SSP_CACHE_MB, else 4096 MB."""
+    text = os.environ.get("FEATHERSTAR_SSP_CACHE_MB", "4096")
+    try:
+        return int(float(text) * (1 << 20))
+    except ValueError:
+        raise SceneError(f"FEATHERSTAR_SSP_CACHE_MB = '{text}' is not a number of MB") from None
+
+
+def _read_folder(folder: Path, placed: Path, where: str, allow_code: bool) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Read the package unpacked in `folder`; its files are named as they will lie in `placed`."""
     ssd_path = folder / SSD_NAME
     if not ssd_path.is_file():
         raise SceneError(f"{where}: no {SSD_NAME} at the top of the package")
@@ -80,48 +124,21 @@ def read_ssp(path: str | Path) -> tuple[dict[str, Any], dict[str, Any]]:
         root = ET.parse(ssd_path).getroot()
     except ET.ParseError as exc:
         raise SceneError(f"{where}: {SSD_NAME} is not well-formed XML ({exc})") from None
-    reader = _SystemReader(folder, where)
+    reader = _SystemReader(folder, placed, where)
     data, overrides = reader.read(root)
     if reader.problems:
-        raise SceneError(reader.problems, data.get("name", path.stem))
+        raise SceneError(reader.problems, data.get("name", folder.stem))
+    if not allow_code:
+        refuse_foreign_code(data, overrides, where)
     return data, overrides
-
-
-def _unpack(path: Path, where: str) -> Path:
-    """Unzip once into the cache, keyed by the package's content; FMU paths stay valid after the
-    call (a run loads its FMUs later)."""
-    from ...fmu_src.export import cache_dir
-
-    digest = hashlib.sha256(path.read_bytes()).hexdigest()[:16]
-    target = cache_dir() / "ssp" / f"{path.stem}-{digest}"
-    if target.is_dir():
-        return target
-    try:
-        archive = zipfile.ZipFile(path)
-    except zipfile.BadZipFile:
-        raise SceneError(f"{where}: not a zip archive (an .ssp is a zip with {SSD_NAME} at its top)") from None
-    with archive:
-        for member in archive.namelist():
-            parts = PurePosixPath(member).parts
-            if PurePosixPath(member).is_absolute() or ".." in parts:
-                raise SceneError(f"{where}: archive member '{member}' points outside the package")
-        target.parent.mkdir(parents=True, exist_ok=True)
-        staging = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
-        try:
-            archive.extractall(staging)
-            os.replace(staging, target)
-        except OSError:
-            shutil.rmtree(staging, ignore_errors=True)
-            if not target.is_dir():  # not a concurrent unpacker that got there first
-                raise
-    return target
 
 
 class _SystemReader:
     """Reads SystemStructure.ssd into scene data, collecting every problem (`problems`)."""
 
-    def __init__(self, folder: Path, where: str) -> None:
+    def __init__(self, folder: Path, placed: Path, where: str) -> None:
         self.folder = folder
+        self.placed = placed
         self.where = where
         self.problems: list[str] = []
 
@@ -263,7 +280,7 @@ class _SystemReader:
         source = self._package_file(element.get("source"), f"{label} source")
         if source is None:
             return
-        block: dict[str, Any] = {"kind": "fmu", "fmu": str(source)}
+        block: dict[str, Any] = {"kind": "fmu", "fmu": str(self.placed / source.relative_to(self.folder))}
         if element.get("description"):
             block["description"] = element.get("description")
         for child in element:

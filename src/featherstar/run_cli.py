@@ -80,6 +80,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if args.out:
         _check_out_dir(args.out)
     scene = args.scene
+    if args.allow_code:
+        from .cosim.scenes import load_scene
+
+        scene = load_scene(args.scene, allow_code=True)
     if args.hardware:
         from .cosim.scenes import load_scene
         from .hil.hardware import parse_hardware, with_hardware
@@ -87,7 +91,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         # The hardware blocks report every fault themselves (one line, with device and time);
         # pymodbus' own log of the same event would only bury it.
         logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
-        scene = with_hardware(load_scene(args.scene), parse_hardware(args.hardware),
+        scene = with_hardware(load_scene(scene), parse_hardware(args.hardware),
                               allow_unactuated=args.allow_unactuated_loadcell)
     try:
         with _stop_signals():
@@ -165,6 +169,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     run.add_argument("--allow-unactuated-loadcell", action="store_true",
                      help="allow --hardware loadcell without --hardware servo (nothing physical then "
                           "moves the feather the cell reads; the summary carries a warning)")
+    run.add_argument("--allow-code", action="store_true",
+                     help="let an SSP package name Python code (block factories, model functions) other than "
+                          "featherstar's own blocks; a package is data and is refused otherwise (see docs/ssp.md)")
     run.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     run.set_defaults(func=_cmd_run)
     scenes = sub.add_parser("scenes", help="list the shipped scenes, or every settable key of one",
