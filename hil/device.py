@@ -24,6 +24,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Callable, Iterator, Mapping, Sequence, TypeVar
 
+from ..cosim.coupling.pacing import STOP
 from .codec import decode_value
 from .errors import DeviceFault, Fault, HILConfigError, HILError
 from .link import FaultSignal, Link, acquire_link, check_transport, parse_url, release_link
@@ -162,6 +163,8 @@ class ModbusDevice:
         t_fault = time.monotonic()
         deadline = t_fault + budget_s
         while (remaining := deadline - time.monotonic()) > 0:
+            # A stop signal is honoured here, not after the whole budget: no command is pending.
+            STOP.raise_if_requested()
             time.sleep(min(_RETRY_PAUSE_S, remaining))
             try:
                 result = operation()

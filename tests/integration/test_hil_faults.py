@@ -30,11 +30,12 @@ URL_OPTIONS = "&timeout_s=0.5"
 RUN_S = 6.0
 
 
-def _start_run(emulator, out: Path, url_options: str = URL_OPTIONS) -> subprocess.Popen:
+def _start_run(emulator, out: Path, url_options: str = URL_OPTIONS,
+               servo_options: str = "") -> subprocess.Popen:
     return subprocess.Popen(
         [sys.executable, "-m", "featherstar", "run", "testbed", "--quiet", "--no-figure",
          "--out", str(out),
-         "--hardware", f"servo={emulator.servo_url}{url_options}",
+         "--hardware", f"servo={emulator.servo_url}{url_options}{servo_options}",
          "--hardware", f"loadcell={emulator.loadcell_url}{url_options}",
          "--set", "master.periods=4", "--set", "metrics.settle_periods=1"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -141,3 +142,34 @@ def test_a_device_killed_and_restarted_is_recovered_but_its_periods_are_not_trus
         assert summary["thrust_ratio_all_periods"] is not None
     finally:
         restarted.stop()
+
+
+@pytest.mark.parametrize("signame, status", [("SIGTERM", 143), ("SIGINT", 130)])
+def test_a_signal_during_the_safe_stop_after_a_fault_is_deferred_until_it_is_done(
+        tmp_path, signame, status):
+    """The device freezes, the run faults and retries the safe position; a signal (two, in
+    fact) arrives during that retry. The retry must not be cut short: once the device wakes it
+    is made safe, the partial data are written, and the exit status is the signal's."""
+    with spawn_emulator(plant="flat-plate", seed=1) as emulator:
+        run = _start_run(emulator, tmp_path, servo_options="&safe_timeout_s=30")
+        try:
+            _wait_until_moving(emulator, run)
+            os.kill(emulator.proc.pid, signal.SIGSTOP)
+            time.sleep(2.0)           # the 0.5 s timeout has fired: the safe stop is retrying
+            assert run.poll() is None
+            run.send_signal(getattr(signal, signame))
+            time.sleep(0.3)
+            run.send_signal(getattr(signal, signame))
+            time.sleep(0.5)
+            assert run.poll() is None, "the signal ended the process inside the safe stop"
+            os.kill(emulator.proc.pid, signal.SIGCONT)
+            _, err = run.communicate(timeout=90)
+        finally:
+            os.kill(emulator.proc.pid, signal.SIGCONT)
+            run.kill()
+        assert run.returncode == status, err
+        line = next(ln for ln in err.splitlines() if ln.startswith("featherstar: error:"))
+        assert "timeout" in line and "partial results" in line
+        assert f"{signame} received during the safe stop" in line
+        summary = _assert_partial_data_and_safe_servo(tmp_path, emulator.port)
+        assert summary["failed_block"] in ("servo", "loadcell_hw")
