@@ -173,3 +173,57 @@ def test_a_signal_during_the_safe_stop_after_a_fault_is_deferred_until_it_is_don
         assert f"{signame} received during the safe stop" in line
         summary = _assert_partial_data_and_safe_servo(tmp_path, emulator.port)
         assert summary["failed_block"] in ("servo", "loadcell_hw")
+
+
+def test_a_device_restart_behind_a_gateway_that_keeps_the_connection_is_not_a_result(tmp_path):
+    """kill -USR1: both emulated devices restart, their TCP connections kept (a gateway in
+    front of an RS-485 line). No reconnect shows it; the boot id does: the load cell's tare is
+    unknown from then on, so the run cannot end `complete` on those data."""
+    with spawn_emulator(plant="flat-plate", seed=1) as emulator:
+        run = _start_run(emulator, tmp_path)
+        try:
+            _wait_until_moving(emulator, run)
+            emulator.reboot()
+            code, line = _finish(run)
+        finally:
+            run.kill()
+        assert code == 2 and "run incomplete" in line
+        summary = _assert_partial_data_and_safe_servo(tmp_path, emulator.port)
+        assert summary["reconnects"] == 0       # the gateway kept the connection
+        restarts = [e for e in summary["hardware_events"] if e["kind"] == "restart"]
+        assert {e["device"] for e in restarts} == {"servo", "loadcell_hw"}
+        assert any(e.get("tare_unknown") for e in restarts if e["device"] == "loadcell_hw")
+        invalid = summary["validity"]["invalid_periods"]
+        assert invalid and all(any("restarted" in r for r in p["reasons"]) for p in invalid)
+
+
+def _position_deg(port: int) -> float | None:
+    """The servo's read-back angle from the emulator (None if it does not answer)."""
+    field = load_servo_map("servo-default").position
+    with ModbusTcpClient("127.0.0.1", port=port, timeout=1.0, retries=0) as client:
+        reply = client.read_holding_registers(field.address, count=2, device_id=SERVO_UNIT)
+        return None if reply.isError() else decode_value(field, reply.registers)
+
+
+def test_a_client_killed_with_sigkill_mid_stroke_leaves_the_servo_to_its_watchdog(tmp_path):
+    """No client code runs after kill -9: the device's own watchdog (servo-default: 500 ms
+    without a request) brings the servo to its safe position and holds it there."""
+    with spawn_emulator(plant="flat-plate", seed=1) as emulator:
+        run = _start_run(emulator, tmp_path)
+        try:
+            _wait_until_moving(emulator, run)
+            deadline = time.monotonic() + 10.0
+            while abs(_position_deg(emulator.port) or 0.0) < 15.0:
+                assert time.monotonic() < deadline, "the stroke never left the centre"
+            run.kill()
+            run.wait(10)
+            angle_at_kill = _position_deg(emulator.port)
+            settled = []
+            for _ in range(3):      # 1.5 s on: safe, and held there (not a stroke passing 0)
+                time.sleep(0.5)
+                settled.append(_position_deg(emulator.port))
+        finally:
+            run.kill()
+        assert run.returncode == -signal.SIGKILL
+        assert abs(angle_at_kill) > 10.0
+        assert settled == pytest.approx([0.0] * 3, abs=0.5), (angle_at_kill, settled)
