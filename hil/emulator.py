@@ -317,10 +317,10 @@ class Emulator:
         m = self.servo_map
         registers = self._registers[SERVO_UNIT][space]
         with self.lock:
-            self.watchdog.feed()
             if not self._advance():
                 return DEVICE_FAILURE
             if values is not None:
+                self.watchdog.feed()     # a command; a monitor that only reads does not feed it
                 return self._servo_write(registers, address, values)
             if function_code == _READ_FC[m.read_function] and \
                     self._faults.get("servo") != "freeze":

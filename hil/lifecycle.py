@@ -5,7 +5,7 @@ own firmware) while the gateway keeps the TCP connection up: the client sees no 
 the tare and the servo's enable and motion are gone. `BootSession` is the firmware side of the
 maps' [session] table: an id drawn at every boot (never 0, never the previous one) and the
 milliseconds since boot, both served on every read. `CommandWatchdog` is the servo firmware's
-[watchdog]: no request for `timeout_ms` and the servo goes to its safe position, which is all
+[watchdog]: no command (a write) for `timeout_ms` and the servo goes to its safe position, which is all
 that protects a bench from a client killed with -9 or a PC that lost power.
 """
 from __future__ import annotations
@@ -45,7 +45,8 @@ class BootSession:
 
 
 class CommandWatchdog:
-    """Trips once when armed and no request came for `timeout_s`; fed by every request."""
+    """Trips once when armed and no command came for `timeout_s`; fed by every write (a
+    monitor that only reads must not keep a dead client's last command alive)."""
 
     def __init__(self, clock: Clock = time.monotonic) -> None:
         self._clock = clock

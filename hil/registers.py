@@ -25,8 +25,8 @@ Map file layout (see the shipped maps for complete examples):
                device restart (behind a gateway the TCP connection does not show it), an uptime
                that stops is a frozen device (featherstar.hil.session)
     [watchdog] servo, optional: address (one holding register), timeout_ms (1..65535, written
-               there with the enable): the device returns to its safe position when no request
-               reached it for that long (a client killed with -9, a PC that lost power)
+               there with the enable): the device returns to its safe position when no command
+               (write) reached it for that long (a client killed with -9, a PC that lost power)
 
 Number field: address, type = "float32" | "int32", word_order = "ABCD" | "CDAB" | "BADC" |
 "DCBA" (default ABCD), unit, scale (default 1), offset (default 0; engineering value =

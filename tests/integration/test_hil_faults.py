@@ -218,10 +218,11 @@ def test_a_client_killed_with_sigkill_mid_stroke_leaves_the_servo_to_its_watchdo
             run.kill()
             run.wait(10)
             angle_at_kill = _position_deg(emulator.port)
+            time.sleep(1.0)         # the 0.5 s watchdog, then the travel back
             settled = []
-            for _ in range(3):      # 1.5 s on: safe, and held there (not a stroke passing 0)
-                time.sleep(0.5)
+            for _ in range(3):      # safe, and held there (not a stroke passing 0)
                 settled.append(_position_deg(emulator.port))
+                time.sleep(0.25)
         finally:
             run.kill()
         assert run.returncode == -signal.SIGKILL
