@@ -23,6 +23,7 @@ from .device import ModbusDevice, ReadPlan, field_value
 from .errors import Fault, HILConfigError, HILError
 from .link import FaultSignal
 from .registers import Status, load_loadcell_map, load_servo_map
+from .session import SessionWatch
 
 log = logging.getLogger(__name__)
 
@@ -71,6 +72,9 @@ class LoadCell(ModbusDevice):
         spans = self.map.value.spans()
         if self.map.status is not None:
             spans.append((self.map.status.address, 1))
+        self._session = None if self.map.session is None else SessionWatch(self.map.session)
+        if self.map.session is not None:
+            spans += self.map.session.spans()
         self._plan = ReadPlan.build(self.map.read_function, spans)
         self.status = Status()
         self._thrust_N = math.nan
@@ -102,6 +106,8 @@ class LoadCell(ModbusDevice):
         self._check_started()
         self._guard(t_s + h_s, self._sample)
         self._note_lag(t_s + h_s, self.status)
+        # A transmitter that restarted has lost its tare, and the feather moves: no new one.
+        self._note_restart(t_s + h_s, tare_unknown=True)
 
     def close(self) -> None:
         self._started = False
@@ -129,6 +135,8 @@ class LoadCell(ModbusDevice):
             elif self.unstable_s is not None and now - self._last_stable_mono > self.unstable_s:
                 raise FaultSignal(Fault.STALE, f"not stable for {now - self._last_stable_mono:.3f}"
                                                f" s (unstable_s={self.unstable_s})")
+        if self._session is not None:
+            self._restart = self._session.check(regs, now) or self._restart
         f = self.map.value
         value = field_value(f, regs)
         raw = (regs[f.address], regs[f.address + 1], regs.get(f.decimals_address))
@@ -198,6 +206,9 @@ class Servo(ModbusDevice):
         spans = self.map.position.spans() if self.map.position is not None else []
         if self.map.status is not None:
             spans.append((self.map.status.address, 1))
+        self._session = None if self.map.session is None else SessionWatch(self.map.session)
+        if self.map.session is not None:
+            spans += self.map.session.spans()
         self._plan = ReadPlan.build(self.map.read_function, spans)
         self._target_rad = self._command_rad = safe_rad
         self._angle_rad, self._rate_rad_s, self._accel_rad_s2 = safe_rad, 0.0, 0.0
@@ -249,6 +260,7 @@ class Servo(ModbusDevice):
         if self._plan.groups:
             self._guard(t_s + h_s, self._read)
             self._note_lag(t_s + h_s, self.status)
+            self._note_restart(t_s + h_s)
         if self.map.position is None and h_s > 0:
             rate = (self._command_rad - previous) / h_s
             self._accel_rad_s2 = (rate - self._rate_rad_s) / h_s
@@ -297,8 +309,12 @@ class Servo(ModbusDevice):
         # Enable on every new connection: the device behind it may have rebooted (and lost
         # its enable) while the link was down, possibly noticed by another block on the link.
         generation = self.link.connect()
-        if self.map.enable is not None and generation != self._enabled_generation:
-            self.link.write_one(self.map.enable.address, self.map.enable.value, self.url.unit)
+        if generation != self._enabled_generation:
+            if self.map.enable is not None:
+                self.link.write_one(self.map.enable.address, self.map.enable.value, self.url.unit)
+            if self.map.watchdog is not None:   # the device's own guard against a dead client
+                self.link.write_one(self.map.watchdog.address, self.map.watchdog.timeout_ms,
+                                    self.url.unit)
             self._enabled_generation = generation
         sp = self.map.setpoint
         self.link.write(sp.address, encode_value(sp, self._command_rad / sp.to_si), self.url.unit)
@@ -310,6 +326,9 @@ class Servo(ModbusDevice):
             self.status = decode_status(self.map.status, regs[self.map.status.address])
             if self.status.error:
                 raise FaultSignal(Fault.DEVICE_ERROR, "servo controller error bit set")
+        if self._session is not None and (restart := self._session.check(regs, now)):
+            # A controller that restarted lost its enable (and watchdog): send them again.
+            self._restart, self._enabled_generation = restart, None
         if self.map.position is None:
             return
         angle = field_value(self.map.position, regs) * self.map.position.to_si

@@ -10,6 +10,7 @@ import asyncio
 import ipaddress
 import logging
 import math
+import signal
 import sys
 
 from .emulator import IDLE_TIMEOUT_S, LOADCELL_UNIT, SERVO_UNIT, Emulator, serve
@@ -109,9 +110,15 @@ def emulate(args: argparse.Namespace) -> int:
               + (f"; {len(hidden)} hidden plant coefficient(s) differ from the defaults" if hidden else ""),
               flush=True)
 
+    async def run() -> None:
+        # kill -USR1: both devices restart behind the gateway, connections kept (fault tests).
+        asyncio.get_running_loop().add_signal_handler(
+            signal.SIGUSR1, lambda: [emulator.reboot(d) for d in ("loadcell", "servo")])
+        await serve(emulator, args.host, args.port, asyncio.Event(), ready,
+                    idle_timeout_s=args.idle_timeout_s)
+
     try:
-        asyncio.run(serve(emulator, args.host, args.port, asyncio.Event(), ready,
-                          idle_timeout_s=args.idle_timeout_s))
+        asyncio.run(run())
     except KeyboardInterrupt:
         pass
     return 0

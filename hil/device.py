@@ -24,6 +24,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Callable, Iterator, Mapping, Sequence, TypeVar
 
+from ..cosim.coupling.pacing import STOP
 from .codec import decode_value
 from .errors import DeviceFault, Fault, HILConfigError, HILError
 from .link import FaultSignal, Link, acquire_link, check_transport, parse_url, release_link
@@ -104,6 +105,7 @@ class ModbusDevice:
         self._started = False
         self._starting = False
         self._generation: int | None = None
+        self._restart: str | None = None   # a device restart seen by the last read
 
     def _open(self) -> None:
         if self._link is None:
@@ -132,6 +134,12 @@ class ModbusDevice:
         around t_s lag the clock, so the master excludes the period (featherstar.cosim.swimmer.validity)."""
         if status.lagging:
             self._note(t_s, "lag", "the device reports its plant behind real time (lag bit)")
+
+    def _note_restart(self, t_s: float, **extra: object) -> None:
+        """A restart the [session] registers showed (featherstar.hil.session), as an event."""
+        if self._restart is not None:
+            self._note(t_s, "restart", self._restart, **extra)
+            self._restart = None
 
     def _on_reconnect(self, t_s: float) -> None:
         """A new connection after start: the device may have rebooted. Blocks add what that
@@ -162,6 +170,8 @@ class ModbusDevice:
         t_fault = time.monotonic()
         deadline = t_fault + budget_s
         while (remaining := deadline - time.monotonic()) > 0:
+            # A stop signal is honoured here, not after the whole budget: no command is pending.
+            STOP.raise_if_requested()
             time.sleep(min(_RETRY_PAUSE_S, remaining))
             try:
                 result = operation()

@@ -34,6 +34,7 @@ import logging
 import math
 import random
 import re
+import signal
 import subprocess
 import sys
 import tempfile
@@ -47,9 +48,10 @@ from .converter import CONVERSION_S, IntegratingConverter
 from .errors import HILError
 from .modbus_server import (DEVICE_FAILURE, ILLEGAL_ADDRESS, ILLEGAL_VALUE, ModbusTcpServer,
                               RateLimitedLog, spaces_for)
+from .lifecycle import BootSession, CommandWatchdog
 from .plant import FlatPlatePlant, Plant
-from .registers import (Function, LoadCellMap, NumberField, ServoMap, Status, StatusField,
-                           load_loadcell_map, load_servo_map)
+from .registers import (Function, LoadCellMap, NumberField, ServoMap, SessionField, Status,
+                        StatusField, load_loadcell_map, load_servo_map)
 
 LOADCELL_UNIT = 1
 SERVO_UNIT = 2
@@ -96,6 +98,9 @@ class Emulator:
         self._converter = None if impulse_Ns is None else IntegratingConverter(0.0, impulse_Ns, conversion_s)
         self.servo_enabled = servo_map.enable is None
         self.servo_setpoint_rad: float | None = None
+        # One boot id per device: behind a gateway each transmitter restarts on its own.
+        self.sessions = {"loadcell": BootSession(self.rng), "servo": BootSession(self.rng)}
+        self.watchdog = CommandWatchdog()
         self.requests = 0
         self.plant_resets = 0
         self.log = RateLimitedLog()
@@ -120,14 +125,56 @@ class Emulator:
             else:
                 self._faults[device] = fault
 
+    def reboot(self, device: str) -> None:
+        """Restart 'loadcell' or 'servo' behind the gateway, sockets kept: a new boot id, the
+        uptime from zero, the registers cleared; the load cell forgets its tare, the servo its
+        enable, its setpoint and its watchdog, and the feather comes to rest."""
+        if device not in self.sessions:
+            raise ValueError(f"reboot({device!r}): device is 'loadcell' or 'servo'")
+        with self.lock:
+            self.sessions[device].boot()
+            unit = LOADCELL_UNIT if device == "loadcell" else SERVO_UNIT
+            self._registers[unit] = {"holding": {}, "input": {}}
+            if device == "loadcell":
+                self.tare_N = 0.0
+            else:
+                self.servo_enabled = self.servo_map.enable is None
+                self.watchdog.arm(0)
+                self._reset_plant(None)
+            self.log(logging.WARNING, f"{device} rebooted (boot id {self.sessions[device].id}); "
+                                      "connections kept")
+
+    def _put_session(self, registers: dict[int, int], field: SessionField | None,
+                     device: str) -> None:
+        if field is not None:
+            boot_id, uptime = self.sessions[device].words()
+            _put(registers, field.address, [boot_id])
+            _put(registers, field.uptime_address, uptime)
+
+    def _check_watchdog(self) -> None:
+        """The servo firmware's watchdog (called with the lock held): no request for its
+        timeout, and the servo goes to its safe position until the next setpoint."""
+        if self.watchdog.expired():
+            lo, hi = self.setpoint_range_rad
+            self.servo_setpoint_rad = min(max(0.0, lo), hi)
+            self.plant.set_setpoint_rad(self.servo_setpoint_rad)
+            sp = self.servo_map.setpoint
+            _put(self._registers[SERVO_UNIT]["holding"], sp.address,
+                 encode_value(sp, self.servo_setpoint_rad / sp.to_si))
+            self.log(logging.WARNING, f"servo watchdog: no request for {self.watchdog.timeout_s} s;"
+                                      f" safe position (trip #{self.watchdog.trips})")
+
     def units(self) -> dict[int, tuple]:
         """Unit id -> (register spaces, handler), for featherstar.hil.modbus_server."""
         lc, sv = self.loadcell_map, self.servo_map
-        lc_read = lc.value.spans() + ([(lc.status.address, 1)] if lc.status else [])
+        lc_read = lc.value.spans() + ([(lc.status.address, 1)] if lc.status else []) \
+            + (lc.session.spans() if lc.session else [])
         lc_write = [(lc.tare.address, 1)] if lc.tare else []
         sv_read = (sv.position.spans() if sv.position else []) \
-            + ([(sv.status.address, 1)] if sv.status else [])
-        sv_write = [(sv.setpoint.address, 2)] + ([(sv.enable.address, 1)] if sv.enable else [])
+            + ([(sv.status.address, 1)] if sv.status else []) \
+            + (sv.session.spans() if sv.session else [])
+        sv_write = [(sv.setpoint.address, 2)] + ([(sv.enable.address, 1)] if sv.enable else []) \
+            + ([(sv.watchdog.address, 1)] if sv.watchdog else [])
         return {LOADCELL_UNIT: (spaces_for(lc.read_function.value, lc_read, lc_write),
                                 self._loadcell_action),
                 SERVO_UNIT: (spaces_for(sv.read_function.value, sv_read, sv_write),
@@ -159,6 +206,7 @@ class Emulator:
                 self._behind(late_s, "the event loop was held up (process not scheduled?)")
             if self._t_mono is None or time.monotonic() - self._t_mono >= TICK_S:
                 self._advance_plant()
+            self._check_watchdog()
 
     def _advance_plant(self) -> bool:
         now = time.monotonic()
@@ -190,11 +238,13 @@ class Emulator:
         self.log(logging.WARNING, f"plant behind real time by {lag_s * 1e3:.0f} ms: {why} "
                                   f"(lag bit set; event #{self.lag_events})")
 
-    def _reset_plant(self, exc: Exception) -> None:
-        self.plant_resets += 1
-        self.log(logging.ERROR, f"plant step failed ({type(exc).__name__}: {exc}); plant reset "
-                                f"to rest, servo disabled until a new setpoint "
-                                f"(reset #{self.plant_resets})")
+    def _reset_plant(self, exc: Exception | None) -> None:
+        """Back to rest: after a failed step (exc), or a servo reboot (None)."""
+        if exc is not None:
+            self.plant_resets += 1
+            self.log(logging.ERROR, f"plant step failed ({type(exc).__name__}: {exc}); plant "
+                                    f"reset to rest, servo disabled until a new setpoint "
+                                    f"(reset #{self.plant_resets})")
         reset = getattr(self.plant, "reset", None)
         if reset is not None:
             reset()
@@ -256,6 +306,8 @@ class Emulator:
                 if m.status is not None:
                     _put(registers, m.status.address,
                          self._status(m.status, "loadcell", abs(force_N) > self.capacity_N, address, count))
+            if function_code == _READ_FC[m.read_function]:
+                self._put_session(registers, m.session, "loadcell")
             return self._read(registers, address, count)
 
     async def _servo_action(self, function_code: int, space: str, address: int, count: int,
@@ -268,6 +320,7 @@ class Emulator:
             if not self._advance():
                 return DEVICE_FAILURE
             if values is not None:
+                self.watchdog.feed()     # a command; a monitor that only reads does not feed it
                 return self._servo_write(registers, address, values)
             if function_code == _READ_FC[m.read_function] and \
                     self._faults.get("servo") != "freeze":
@@ -276,6 +329,8 @@ class Emulator:
                                      self.plant.angle_rad / m.position.to_si)
                 if m.status is not None:
                     _put(registers, m.status.address, self._status(m.status, "servo", False, address, count))
+            if function_code == _READ_FC[m.read_function]:
+                self._put_session(registers, m.session, "servo")
             return self._read(registers, address, count)
 
     def _servo_write(self, registers: dict[int, int], address: int,
@@ -299,8 +354,11 @@ class Emulator:
         _put(registers, address, values)
         if setpoint_rad is not None:
             self.servo_setpoint_rad = setpoint_rad
+            self.watchdog.resume()
         if m.enable is not None and address <= m.enable.address < end:
             self.servo_enabled = values[m.enable.address - address] == m.enable.value
+        if m.watchdog is not None and address <= m.watchdog.address < end:
+            self.watchdog.arm(values[m.watchdog.address - address])
         if self.servo_enabled and self.servo_setpoint_rad is not None:
             self.plant.set_setpoint_rad(self.servo_setpoint_rad)
         return None
@@ -443,6 +501,10 @@ class EmulatorProcess(_Handle):
         self._stderr.close()
         if self._parameters_file is not None:
             Path(self._parameters_file.name).unlink(missing_ok=True)
+
+    def reboot(self) -> None:
+        """SIGUSR1: both devices restart behind the gateway, TCP connections kept."""
+        self.proc.send_signal(signal.SIGUSR1)
 
     def kill(self) -> None:
         """SIGKILL: the server vanishes mid-conversation, as a device losing power does."""

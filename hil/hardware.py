@@ -75,6 +75,15 @@ def parse_hardware(items: list[str] | None) -> dict[str, str]:
     return out
 
 
+def check_hardware_overrides(scene: Scene, overrides: Mapping[str, Any] | None) -> None:
+    """Refuse overrides that would unpace a hardware scene: the devices run on the wall clock
+    whatever the master does, so an unpaced master plays a 9 s stroke on them in 2 s."""
+    if not scene.with_overrides(overrides or {}).master.realtime:
+        raise SceneError("--set master.realtime=false with --hardware: the devices run on the "
+                         "wall clock, so an unpaced run would play the stroke faster than its "
+                         "period; hardware runs are always paced in real time")
+
+
 def bench_command(step_s: float) -> dict[str, float]:
     """Stroke-controller settings that make a simulation command its servo as a bench run at
     `step_s` does (featherstar.cosim.swimmer.controller, "How the command reaches the servo"): the stroke

@@ -17,7 +17,16 @@ Map file layout (see the shipped maps for complete examples):
                optional). lag_bit: an emulated device's model fell behind real time since the
                status was last read (featherstar emulate sets it; real transmitters have none)
     [tare]     loadcell, optional: address, value (written with function code 6)
-    [enable]   servo, optional: address, value (written on every new connection)
+    [enable]   servo, optional: address, value (written on every new connection and after
+               every device restart)
+    [session]  optional, both kinds: address (one register: an id the device draws anew at every
+               boot, never 0), uptime_address (two registers, ABCD: milliseconds since boot,
+               unsigned). Read with every sample: a changed id or an uptime that went back is a
+               device restart (behind a gateway the TCP connection does not show it), an uptime
+               that stops is a frozen device (featherstar.hil.session)
+    [watchdog] servo, optional: address (one holding register), timeout_ms (1..65535, written
+               there with the enable): the device returns to its safe position when no command
+               (write) reached it for that long (a client killed with -9, a PC that lost power)
 
 Number field: address, type = "float32" | "int32", word_order = "ABCD" | "CDAB" | "BADC" |
 "DCBA" (default ABCD), unit, scale (default 1), offset (default 0; engineering value =
@@ -110,6 +119,21 @@ class CommandField:
 
 
 @dataclass(frozen=True)
+class SessionField:
+    address: int           # boot id, one register
+    uptime_address: int    # milliseconds since boot, two registers (ABCD)
+
+    def spans(self) -> list[tuple[int, int]]:
+        return [(self.address, 1), (self.uptime_address, 2)]
+
+
+@dataclass(frozen=True)
+class WatchdogField:
+    address: int
+    timeout_ms: int
+
+
+@dataclass(frozen=True)
 class LoadCellMap:
     name: str
     source: str
@@ -118,6 +142,7 @@ class LoadCellMap:
     value: NumberField
     status: StatusField | None
     tare: CommandField | None
+    session: SessionField | None = None
 
 
 @dataclass(frozen=True)
@@ -130,10 +155,13 @@ class ServoMap:
     position: NumberField | None
     status: StatusField | None
     enable: CommandField | None
+    session: SessionField | None = None
+    watchdog: WatchdogField | None = None
 
 
-_SECTIONS = {"loadcell": {"device", "value", "status", "tare"},
-             "servo": {"device", "setpoint", "position", "status", "enable"}}
+_SECTIONS = {"loadcell": {"device", "value", "status", "tare", "session"},
+             "servo": {"device", "setpoint", "position", "status", "enable", "session",
+                       "watchdog"}}
 _NUMBER_KEYS = {"address", "type", "word_order", "unit", "scale", "offset", "decimals",
                 "decimals_address", "min", "max"}
 
@@ -245,6 +273,19 @@ def _command_field(r: _Reader, section: str, table: dict[str, Any], base: int) -
                         value=r.integer(section, table, "value", 0, 65535, required=True))
 
 
+def _session_field(r: _Reader, table: dict[str, Any], base: int) -> SessionField:
+    r.check_keys("session", table, {"address", "uptime_address"})
+    return SessionField(address=_address(r, "session", table, "address", base),
+                        uptime_address=_address(r, "session", table, "uptime_address", base))
+
+
+def _watchdog_field(r: _Reader, table: dict[str, Any], base: int) -> WatchdogField:
+    r.check_keys("watchdog", table, {"address", "timeout_ms"})
+    return WatchdogField(address=_address(r, "watchdog", table, "address", base),
+                         timeout_ms=r.integer("watchdog", table, "timeout_ms", 1, 65535,
+                                              required=True))
+
+
 def _check_overlaps(r: _Reader, spaces: dict[str, list[tuple[str, int, int]]]) -> None:
     for space, fields in spaces.items():
         fields.sort(key=lambda f: f[1])
@@ -260,7 +301,10 @@ def _layout(read_function: Function, readable: dict[str, Any],
     spaces: dict[str, list[tuple[str, int, int]]] = {"holding": [], "input": []}
     for group, space in ((readable, read_function.value), (writable, "holding")):
         for name, f in group.items():
-            if isinstance(f, NumberField):
+            if isinstance(f, SessionField):
+                spaces[space] += [(f"[{name}] address", f.address, 1),
+                                  (f"[{name}] uptime_address", f.uptime_address, 2)]
+            elif isinstance(f, NumberField):
                 spaces[space].append((f"[{name}]", f.address, 2))
                 if f.decimals_address is not None:
                     spaces[read_function.value].append(
@@ -282,13 +326,16 @@ def parse_map(doc: dict[str, Any], name: str, source: str) -> LoadCellMap | Serv
     description = str(device.get("description", ""))
     status = r.table(doc, "status", required=False)
     status_field = None if status is None else _status_field(r, status, base)
+    session = r.table(doc, "session", required=False)
+    session_field = None if session is None else _session_field(r, session, base)
     if kind == "loadcell":
         value = _number_field(r, "value", r.table(doc, "value", True), kind, base)
         tare = r.table(doc, "tare", required=False)
         tare_field = None if tare is None else _command_field(r, "tare", tare, base)
-        _check_overlaps(r, _layout(function, {"value": value, "status": status_field},
-                                   {"tare": tare_field}))
-        return LoadCellMap(name, source, description, function, value, status_field, tare_field)
+        _check_overlaps(r, _layout(function, {"value": value, "status": status_field,
+                                              "session": session_field}, {"tare": tare_field}))
+        return LoadCellMap(name, source, description, function, value, status_field, tare_field,
+                           session_field)
     setpoint = _number_field(r, "setpoint", r.table(doc, "setpoint", True), kind, base)
     if setpoint.decimals_address is not None:
         # A write-only field cannot follow a decimals register without an extra read per step.
@@ -298,10 +345,14 @@ def parse_map(doc: dict[str, Any], name: str, source: str) -> LoadCellMap | Serv
                                                                  base)
     enable = r.table(doc, "enable", required=False)
     enable_field = None if enable is None else _command_field(r, "enable", enable, base)
-    _check_overlaps(r, _layout(function, {"position": position_field, "status": status_field},
-                               {"setpoint": setpoint, "enable": enable_field}))
+    watchdog = r.table(doc, "watchdog", required=False)
+    watchdog_field = None if watchdog is None else _watchdog_field(r, watchdog, base)
+    _check_overlaps(r, _layout(function, {"position": position_field, "status": status_field,
+                                          "session": session_field},
+                               {"setpoint": setpoint, "enable": enable_field,
+                                "watchdog": watchdog_field}))
     return ServoMap(name, source, description, function, setpoint, position_field, status_field,
-                    enable_field)
+                    enable_field, session_field, watchdog_field)
 
 
 def _maps_dir() -> Traversable:
@@ -325,7 +376,15 @@ def load_map(name_or_path: str | Path) -> LoadCellMap | ServoMap:
         if not path.is_file():
             raise HILConfigError(f"register map {text_name!r}: no such file and not a shipped "
                                  f"map; shipped maps: {', '.join(available_maps())}")
-        source, text = str(path), path.read_text(encoding="utf-8")
+        source = str(path)
+        try:
+            text = path.read_text(encoding="utf-8")
+        except UnicodeDecodeError as exc:
+            raise HILConfigError(f"register map {source}: not UTF-8 text (byte {exc.start}: "
+                                 f"{exc.reason}); save it as UTF-8") from None
+        except OSError as exc:
+            raise HILConfigError(f"register map {source}: cannot read it "
+                                 f"({exc.strerror or exc})") from None
     try:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:

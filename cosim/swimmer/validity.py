@@ -11,7 +11,9 @@ A metric period is invalid when, inside it,
   - a device needed a recovery (a data gap), or
   - a device reported its plant behind real time (an emulator's status lag bit: its data lag
     the clock by more than its limit), or
-  - it lies at or after a load-cell reconnect (the tare is unknown until the end of the run).
+  - a device restarted (its [session] boot id changed, featherstar.hil.session; behind a
+    gateway the connection stays up) or reconnected, and, for the load cell, every period at
+    or after it (the tare is unknown until the end of the run).
 A run is complete only if at least MIN_VALID_FRACTION of the window's periods (and at least
 one) are valid; otherwise `complete` is false and `featherstar run` exits with status 2.
 """
@@ -28,6 +30,8 @@ from .metrics import thrust_metrics
 MAX_LATE_S = 0.05          # 12 steps at 250 Hz: the servo can travel 0.3 rad on a stale command
 MAX_MISS_FRACTION = 0.1    # isolated misses of a loaded machine are jitter, a tenth is not
 MIN_VALID_FRACTION = 0.5   # fewer valid periods than this share of the window: not a result
+# Events after which the device may not be the one that was tared and enabled at the start.
+_RESTARTS = {"reconnect": "reconnected", "restart": "restarted (new boot id)"}
 
 
 @dataclass(frozen=True)
@@ -59,10 +63,11 @@ def judge_periods(window_s: Sequence[float], period_s: float, n_periods: int, st
                 reasons.append(f"{e.get('device')}: data gap at t={t:.3f} s")
             elif e.get("kind") == "lag" and ta <= t < tb:
                 reasons.append(f"{e.get('device')}: plant behind real time at t={t:.3f} s")
-            elif e.get("kind") == "reconnect" and e.get("tare_unknown") and t < tb:
-                reasons.append(f"{e.get('device')}: reconnected at t={t:.3f} s, tare unknown")
-            elif e.get("kind") == "reconnect" and ta <= t < tb:
-                reasons.append(f"{e.get('device')}: reconnected at t={t:.3f} s")
+            elif e.get("kind") in _RESTARTS and e.get("tare_unknown") and t < tb:
+                reasons.append(f"{e.get('device')}: {_RESTARTS[e['kind']]} at t={t:.3f} s, "
+                               "tare unknown")
+            elif e.get("kind") in _RESTARTS and ta <= t < tb:
+                reasons.append(f"{e.get('device')}: {_RESTARTS[e['kind']]} at t={t:.3f} s")
         verdicts.append(PeriodVerdict(k, ta, tuple(reasons)))
     return verdicts
 

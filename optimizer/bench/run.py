@@ -17,7 +17,7 @@ import numpy as np
 from ...cosim.errors import StepError
 from ...cosim.scenes import load_scene
 from ...cosim.swimmer.run import run_scene
-from ...hil.hardware import LOADCELL_BLOCK, parse_hardware, with_hardware
+from ...hil.hardware import LOADCELL_BLOCK, check_hardware_overrides, parse_hardware, with_hardware
 from ..errors import OptimizerError
 
 THRUST_SIGNAL = f"{LOADCELL_BLOCK}.thrust_N"
@@ -56,6 +56,7 @@ def run_on_bench(scene: str, hardware: Mapping[str, str], overrides: Mapping[str
     # The hardware blocks report every fault themselves; pymodbus' log of it would only bury it.
     logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
     bench_scene = with_hardware(load_scene(scene), slots)
+    check_hardware_overrides(bench_scene, overrides)
     try:
         result = run_scene(bench_scene, dict(overrides), outputs=[THRUST_SIGNAL, ANGLE_SIGNAL])
     except StepError as exc:

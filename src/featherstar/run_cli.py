@@ -3,16 +3,13 @@ in, featherstar.hil.hardware) and list the shipped scenes. Registered by feather
 from __future__ import annotations
 
 import argparse
-import contextlib
 import logging
-import signal
 import sys
 import tempfile
-import threading
 from pathlib import Path
-from typing import Iterator, Sequence
+from typing import Sequence
 
-from .terminal import EXIT_FOR_SIGNAL, one_line
+from .terminal import EXIT_FOR_SIGNAL, exit_status, one_line, stop_signals
 
 
 def _parse_set(items: Sequence[str]) -> dict[str, str]:
@@ -37,40 +34,7 @@ def _check_out_dir(out: Path) -> None:
         raise SceneError(f"--out {out}: cannot write there ({exc.strerror or exc})") from None
 
 
-@contextlib.contextmanager
-def _stop_signals() -> Iterator[None]:
-    """SIGINT/SIGTERM/SIGHUP stop the run once, as Ctrl-C does (so blocks are closed and the
-    servo commanded to its safe position); repeats while that happens are only reported, so a
-    second Ctrl-C cannot cut the safe stop short."""
-    from .cosim.errors import RunInterrupted
-
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    fired: list[str] = []
-
-    def handler(signum: int, _frame: object) -> None:
-        name = signal.Signals(signum).name
-        if fired:
-            print(f"featherstar: {name} received, still stopping safely", file=sys.stderr)
-            return
-        fired.append(name)
-        raise RunInterrupted(name)
-
-    names = [n for n in EXIT_FOR_SIGNAL if hasattr(signal, n)]
-    previous = {n: signal.signal(getattr(signal, n), handler) for n in names}
-    try:
-        yield
-    finally:
-        for n, h in previous.items():
-            signal.signal(getattr(signal, n), h)
-
-
 def _cmd_run(args: argparse.Namespace) -> int:
-    from .cosim.errors import StepError
-    from .cosim.swimmer.report import summary_table, write_outputs
-    from .cosim.swimmer.run import run_scene
-
     try:
         overrides = _parse_set(args.set)
     except argparse.ArgumentTypeError as exc:
@@ -86,17 +50,28 @@ def _cmd_run(args: argparse.Namespace) -> int:
         scene = load_scene(args.scene, allow_code=True)
     if args.hardware:
         from .cosim.scenes import load_scene
-        from .hil.hardware import parse_hardware, with_hardware
+        from .hil.hardware import check_hardware_overrides, parse_hardware, with_hardware
 
         # The hardware blocks report every fault themselves (one line, with device and time);
         # pymodbus' own log of the same event would only bury it.
         logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
         scene = with_hardware(load_scene(scene), parse_hardware(args.hardware),
                               allow_unactuated=args.allow_unactuated_loadcell)
+        check_hardware_overrides(scene, overrides)
+    # With hardware, a signal is honoured between steps, never inside the safe stop, and the
+    # outputs are written before the command exits with the signal's status.
+    with stop_signals(deferred=bool(args.hardware)) as stop:
+        return exit_status(_run_and_report(args, scene, overrides, outputs, stop), stop)
+
+
+def _run_and_report(args: argparse.Namespace, scene, overrides, outputs, stop) -> int:
+    from .cosim.errors import StepError
+    from .cosim.swimmer.report import summary_table, write_outputs
+    from .cosim.swimmer.run import run_scene
+
     try:
-        with _stop_signals():
-            result = run_scene(scene, overrides, outputs=outputs, progress=not args.quiet,
-                               strict_window=True)
+        result = run_scene(scene, overrides, outputs=outputs, progress=not args.quiet,
+                           strict_window=True)
     except StepError as exc:
         where = ""
         if exc.partial is not None and args.out:
@@ -108,6 +83,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
                                         .get("safe_position_confirmed") or {}).items() if not ok]
         if unsafe:
             where += f"; WARNING: {', '.join(unsafe)} did not acknowledge its safe position"
+        late_signal = stop.pending
+        if late_signal and late_signal != exc.interrupted:
+            where += f"; {late_signal} received during the safe stop, honoured after it"
         print(f"featherstar: error: {one_line(exc)}{where}", file=sys.stderr)
         return EXIT_FOR_SIGNAL.get(exc.interrupted or "", 2)
     print(summary_table(result.summary))

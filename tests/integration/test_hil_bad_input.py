@@ -81,3 +81,9 @@ def test_the_explicit_flag_runs_it_with_a_warning_in_the_summary(tmp_path, capsy
     assert any("nothing the run commands moves the feather" in w for w in summary["warnings"])
     assert "WARNING: loadcell_hw: the load cell is real but the servo is simulated" in out
     assert code in (0, 2) and summary["complete"] is (code == 0)
+
+
+@pytest.mark.parametrize("value", ["false", "False", "no"])
+def test_an_unpaced_hardware_run_is_refused(capsys, value):
+    line = _refused(capsys, ["run", "testbed", "--quiet", *HW, "--set", f"master.realtime={value}"])
+    assert "master.realtime" in line and "paced in real time" in line

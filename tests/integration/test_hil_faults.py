@@ -30,11 +30,12 @@ URL_OPTIONS = "&timeout_s=0.5"
 RUN_S = 6.0
 
 
-def _start_run(emulator, out: Path, url_options: str = URL_OPTIONS) -> subprocess.Popen:
+def _start_run(emulator, out: Path, url_options: str = URL_OPTIONS,
+               servo_options: str = "") -> subprocess.Popen:
     return subprocess.Popen(
         [sys.executable, "-m", "featherstar", "run", "testbed", "--quiet", "--no-figure",
          "--out", str(out),
-         "--hardware", f"servo={emulator.servo_url}{url_options}",
+         "--hardware", f"servo={emulator.servo_url}{url_options}{servo_options}",
          "--hardware", f"loadcell={emulator.loadcell_url}{url_options}",
          "--set", "master.periods=4", "--set", "metrics.settle_periods=1"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -141,3 +142,89 @@ def test_a_device_killed_and_restarted_is_recovered_but_its_periods_are_not_trus
         assert summary["thrust_ratio_all_periods"] is not None
     finally:
         restarted.stop()
+
+
+@pytest.mark.parametrize("signame, status", [("SIGTERM", 143), ("SIGINT", 130)])
+def test_a_signal_during_the_safe_stop_after_a_fault_is_deferred_until_it_is_done(
+        tmp_path, signame, status):
+    """The device freezes, the run faults and retries the safe position; a signal (two, in
+    fact) arrives during that retry. The retry must not be cut short: once the device wakes it
+    is made safe, the partial data are written, and the exit status is the signal's."""
+    with spawn_emulator(plant="flat-plate", seed=1) as emulator:
+        run = _start_run(emulator, tmp_path, servo_options="&safe_timeout_s=30")
+        try:
+            _wait_until_moving(emulator, run)
+            os.kill(emulator.proc.pid, signal.SIGSTOP)
+            time.sleep(2.0)           # the 0.5 s timeout has fired: the safe stop is retrying
+            assert run.poll() is None
+            run.send_signal(getattr(signal, signame))
+            time.sleep(0.3)
+            run.send_signal(getattr(signal, signame))
+            time.sleep(0.5)
+            assert run.poll() is None, "the signal ended the process inside the safe stop"
+            os.kill(emulator.proc.pid, signal.SIGCONT)
+            _, err = run.communicate(timeout=90)
+        finally:
+            os.kill(emulator.proc.pid, signal.SIGCONT)
+            run.kill()
+        assert run.returncode == status, err
+        line = next(ln for ln in err.splitlines() if ln.startswith("featherstar: error:"))
+        assert "timeout" in line and "partial results" in line
+        assert f"{signame} received during the safe stop" in line
+        summary = _assert_partial_data_and_safe_servo(tmp_path, emulator.port)
+        assert summary["failed_block"] in ("servo", "loadcell_hw")
+
+
+def test_a_device_restart_behind_a_gateway_that_keeps_the_connection_is_not_a_result(tmp_path):
+    """kill -USR1: both emulated devices restart, their TCP connections kept (a gateway in
+    front of an RS-485 line). No reconnect shows it; the boot id does: the load cell's tare is
+    unknown from then on, so the run cannot end `complete` on those data."""
+    with spawn_emulator(plant="flat-plate", seed=1) as emulator:
+        run = _start_run(emulator, tmp_path)
+        try:
+            _wait_until_moving(emulator, run)
+            emulator.reboot()
+            code, line = _finish(run)
+        finally:
+            run.kill()
+        assert code == 2 and "run incomplete" in line
+        summary = _assert_partial_data_and_safe_servo(tmp_path, emulator.port)
+        assert summary["reconnects"] == 0       # the gateway kept the connection
+        restarts = [e for e in summary["hardware_events"] if e["kind"] == "restart"]
+        assert {e["device"] for e in restarts} == {"servo", "loadcell_hw"}
+        assert any(e.get("tare_unknown") for e in restarts if e["device"] == "loadcell_hw")
+        invalid = summary["validity"]["invalid_periods"]
+        assert invalid and all(any("restarted" in r for r in p["reasons"]) for p in invalid)
+
+
+def _position_deg(port: int) -> float | None:
+    """The servo's read-back angle from the emulator (None if it does not answer)."""
+    field = load_servo_map("servo-default").position
+    with ModbusTcpClient("127.0.0.1", port=port, timeout=1.0, retries=0) as client:
+        reply = client.read_holding_registers(field.address, count=2, device_id=SERVO_UNIT)
+        return None if reply.isError() else decode_value(field, reply.registers)
+
+
+def test_a_client_killed_with_sigkill_mid_stroke_leaves_the_servo_to_its_watchdog(tmp_path):
+    """No client code runs after kill -9: the device's own watchdog (servo-default: 500 ms
+    without a request) brings the servo to its safe position and holds it there."""
+    with spawn_emulator(plant="flat-plate", seed=1) as emulator:
+        run = _start_run(emulator, tmp_path)
+        try:
+            _wait_until_moving(emulator, run)
+            deadline = time.monotonic() + 10.0
+            while abs(_position_deg(emulator.port) or 0.0) < 15.0:
+                assert time.monotonic() < deadline, "the stroke never left the centre"
+            run.kill()
+            run.wait(10)
+            angle_at_kill = _position_deg(emulator.port)
+            time.sleep(1.0)         # the 0.5 s watchdog, then the travel back
+            settled = []
+            for _ in range(3):      # safe, and held there (not a stroke passing 0)
+                settled.append(_position_deg(emulator.port))
+                time.sleep(0.25)
+        finally:
+            run.kill()
+        assert run.returncode == -signal.SIGKILL
+        assert abs(angle_at_kill) > 10.0
+        assert settled == pytest.approx([0.0] * 3, abs=0.5), (angle_at_kill, settled)
