@@ -4,7 +4,7 @@ The test bed with a co-simulation-only command filter (a first-order lag, tau 20
 test FMU of tests/cosim/fmi2_lag seen through its CS interface) between the stroke controller
 and the servo. Reference: the filter as Model Exchange, everything strongly coupled at rtol 1e-10.
 For each communication step: mixed (the servo and feather one ODE, the filter stepped), Jacobi and
-Gauss-Seidel; the relative error of TR and mean thrust, and wall time as a ratio to mixed's in
+Gauss-Seidel (mixed also with Adams fixed-point iteration); the relative error of TR and mean thrust, and wall time as a ratio to mixed's in
 the same run (this machine is noisy: compare ratios).
 
     python bench/mixed_coupling.py [--quick] [--out DIR]    # JSON and plot (default docs/results)
@@ -27,7 +27,10 @@ from test_mixed_coupling import filtered_testbed  # noqa: E402
 
 from featherstar.cosim.swimmer.run import run_scene  # noqa: E402
 
-COUPLINGS = ("mixed", "jacobi", "gauss-seidel")
+#: (label, coupling, master.method): the scene's Adams-Newton, and Adams with fixed-point iteration,
+#: which needs no Jacobian after each of the mixed coupling's solver restarts
+VARIANTS = (("mixed", "mixed", "adams"), ("mixed, adams-fixedpoint", "mixed", "adams-fixedpoint"),
+            ("jacobi", "jacobi", "adams"), ("gauss-seidel", "gauss-seidel", "adams"))
 
 
 def measure(fmu: Path, steps_s: list[float], periods: int) -> dict:
@@ -39,14 +42,14 @@ def measure(fmu: Path, steps_s: list[float], periods: int) -> dict:
              "thrust_ratio": ref.summary["thrust_ratio"], "mean_thrust_N": ref.summary["mean_thrust_N"]}]
     scene = filtered_testbed(fmu, "cs")
     for step_s in steps_s:
-        for coupling in COUPLINGS:
+        for label, coupling, method in VARIANTS:
             t0 = time.perf_counter()
-            r = run_scene(scene, {**short, "master.coupling": coupling, "master.step_s": step_s})
+            r = run_scene(scene, {**short, "master.coupling": coupling, "master.method": method, "master.step_s": step_s})
             wall = time.perf_counter() - t0
-            rows.append({"coupling": coupling, "step_s": step_s, "wall_s": wall,
+            rows.append({"coupling": label, "step_s": step_s, "wall_s": wall,
                          "tr_rel_error": abs(r.summary["thrust_ratio"] / ref.summary["thrust_ratio"] - 1),
                          "mean_thrust_rel_error": abs(r.summary["mean_thrust_N"] / ref.summary["mean_thrust_N"] - 1)})
-            print(f"{coupling:13s} step {step_s:g} s: TR error {rows[-1]['tr_rel_error']:.2e}, mean thrust error "
+            print(f"{label:24s} step {step_s:g} s: TR error {rows[-1]['tr_rel_error']:.2e}, mean thrust error "
                   f"{rows[-1]['mean_thrust_rel_error']:.2e}, {wall:.2f} s", flush=True)
     for row in rows[1:]:
         mixed = next(r for r in rows[1:] if r["coupling"] == "mixed" and r["step_s"] == row["step_s"])
@@ -61,9 +64,9 @@ def plot(result: dict, out: Path) -> None:
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(6, 4))
-    for coupling, marker in zip(COUPLINGS, "osd"):
-        rows = [r for r in result["rows"] if r["coupling"] == coupling]
-        ax.loglog([r["wall_s"] for r in rows], [r["tr_rel_error"] for r in rows], marker=marker, label=coupling)
+    for (label, _, _), marker in zip(VARIANTS, "o^sd"):
+        rows = [r for r in result["rows"] if r["coupling"] == label]
+        ax.loglog([r["wall_s"] for r in rows], [r["tr_rel_error"] for r in rows], marker=marker, label=label)
         for r in rows:
             ax.annotate(f"{r['step_s'] * 1e3:g} ms", (r["wall_s"], r["tr_rel_error"]), fontsize=7,
                         xytext=(3, 3), textcoords="offset points")
