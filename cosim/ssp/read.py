@@ -145,6 +145,7 @@ class _SystemReader:
         self.placed = placed
         self.where = where
         self.problems: list[str] = []
+        self.annotation: Any = None  # the featherstar annotation as written (JSON), judged whole
 
     def refuse(self, message: str) -> None:
         self.problems.append(message)
