@@ -40,6 +40,10 @@ class ZipLimits:
 DEFAULT_LIMITS = ZipLimits()
 
 
+def _size(n_bytes: float) -> str:
+    return f"{n_bytes / MiB:.1f} MB" if n_bytes >= MiB else f"{n_bytes / 1024:.0f} kB"
+
+
 def _member_problem(info: zipfile.ZipInfo, limits: ZipLimits) -> str | None:
     name = info.filename
     path = PurePosixPath(name)
@@ -52,7 +56,7 @@ def _member_problem(info: zipfile.ZipInfo, limits: ZipLimits) -> str | None:
     if info.flag_bits & 0x1:
         return "is encrypted"
     if info.file_size > limits.max_member_bytes:
-        return f"unpacks to {info.file_size / MiB:.1f} MB, over the {limits.max_member_bytes / MiB:.0f} MB a member may hold"
+        return f"unpacks to {_size(info.file_size)}, over the {_size(limits.max_member_bytes)} a member may hold"
     if info.file_size >= limits.ratio_floor_bytes and info.file_size > limits.max_ratio * max(info.compress_size, 1):
         return (f"unpacks {info.file_size / max(info.compress_size, 1):.0f} times its compressed size, over the "
                 f"{limits.max_ratio:.0f}x a real file reaches (a zip bomb)")
@@ -77,7 +81,7 @@ def check_zip(archive: zipfile.ZipFile, label: str, limits: ZipLimits = DEFAULT_
         seen.add(key)
         total += info.file_size
         if total > limits.max_total_bytes:
-            raise SceneError(f"{label}: unpacks to more than {limits.max_total_bytes / MiB:.0f} MB (the bound of one "
+            raise SceneError(f"{label}: unpacks to more than {_size(limits.max_total_bytes)} (the bound of one "
                              f"archive; reached at member '{info.filename}')")
     return total
 
@@ -112,7 +116,7 @@ def extract_bounded(path: Path, target: Path, label: str, limits: ZipLimits = DE
             _check_quota(quota, total, label)
         free = shutil.disk_usage(target.parent).free
         if total + 64 * MiB > free:
-            raise SceneError(f"{label}: unpacks to {total / MiB:.0f} MB but {target.parent} has {free / MiB:.0f} MB free")
+            raise SceneError(f"{label}: unpacks to {_size(total)} but {target.parent} has {_size(free)} free")
         staging = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
         try:
             budget = total
@@ -158,6 +162,6 @@ def _check_quota(quota: tuple[Path, int], total: int, label: str) -> None:
     folder, limit = quota
     used = folder_bytes(folder)
     if used + total > limit:
-        raise SceneError(f"{label}: unpacks to {total / MiB:.0f} MB but the cache {folder} holds {used / MiB:.0f} MB "
-                         f"of its {limit / MiB:.0f} MB quota (remove packages you no longer run from it, or raise "
+        raise SceneError(f"{label}: unpacks to {_size(total)} but the cache {folder} holds {_size(used)} "
+                         f"of its {_size(limit)} quota (remove packages you no longer run from it, or raise "
                          "FEATHERSTAR_SSP_CACHE_MB)")

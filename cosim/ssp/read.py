@@ -17,6 +17,7 @@ nothing drives, a start time other than 0. Other annotations and geometry are ig
 """
 from __future__ import annotations
 
+import copy
 import hashlib
 import json
 import os
@@ -45,6 +46,9 @@ FEATHERSTAR_ANNOTATION = "org.featherstar.scene"
 #: The recorder that records the system's outputs (connectors of kind output fed by components).
 OUTPUTS_RECORDER = "system_outputs"
 
+#: The shape of each part of the featherstar annotation that the reader or the scene reads as a whole.
+_ANNOTATION_SHAPES: dict[str, type] = {"blocks": dict, "connections": list, "overrides": dict, "master": dict,
+                                       "metrics": dict, "aliases": dict}
 _PREFIX_OF = {uri: prefix for prefix, uri in NS.items()}
 _IGNORED = {"ElementGeometry", "ConnectorGeometry", "ConnectionGeometry", "GraphicalElements", "Units",
             "Enumerations", "Annotations"}
@@ -126,10 +130,10 @@ def _read_folder(folder: Path, placed: Path, where: str, allow_code: bool) -> tu
         raise SceneError(f"{where}: {SSD_NAME} is not well-formed XML ({exc})") from None
     reader = _SystemReader(folder, placed, where)
     data, overrides = reader.read(root)
+    if not allow_code:   # first: that a package names code says more than what else is wrong with it
+        refuse_foreign_code(reader.annotation, where)
     if reader.problems:
         raise SceneError(reader.problems, data.get("name", folder.stem))
-    if not allow_code:
-        refuse_foreign_code(data, overrides, where)
     return data, overrides
 
 
@@ -141,6 +145,7 @@ class _SystemReader:
         self.placed = placed
         self.where = where
         self.problems: list[str] = []
+        self.annotation: Any = None  # the featherstar annotation as written (JSON), judged whole
 
     def refuse(self, message: str) -> None:
         self.problems.append(message)
@@ -245,8 +250,16 @@ class _SystemReader:
             except json.JSONDecodeError as exc:
                 self.refuse(f"ssc:Annotation '{FEATHERSTAR_ANNOTATION}': fs:Scene is not valid JSON ({exc})")
                 return {}, {}
+            self.annotation = copy.deepcopy(extra)
             if not isinstance(extra, dict):
                 self.refuse(f"ssc:Annotation '{FEATHERSTAR_ANNOTATION}' must hold an fs:Scene JSON object")
+                return {}, {}
+            wrong = [f"'{key}' must be a JSON {shape.__name__.replace('dict', 'object').replace('list', 'array')}"
+                     for key, shape in _ANNOTATION_SHAPES.items() if not isinstance(extra.get(key, shape()), shape)]
+            blocks = extra.get("blocks") if isinstance(extra.get("blocks"), dict) else {}
+            wrong += [f"block '{name}' must be a JSON object" for name, block in blocks.items() if not isinstance(block, dict)]
+            if wrong:
+                self.refuse(f"ssc:Annotation '{FEATHERSTAR_ANNOTATION}': {'; '.join(wrong)}")
                 return {}, {}
             return extra, dict(extra.pop("overrides", {}))
         return {}, {}
