@@ -164,13 +164,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
             "agrees and, where the model cannot reproduce it, why. Every number is also in DIR/paper.json."
         ),
         epilog=(
-            "--quick takes a few minutes on two cores (4 sweep geometries per family, 2 controllers,\n"
-            "8 optimizer iterations, 3 validation sets); without it the paper's budgets are used\n"
-            "(the whole sweep grid, 30 iterations, 10 sets of 5 periods), which takes hours.\n"
-            "Both reports state their run time and resolution. Example: docs/paper-report/report.md"
+            "--quick: 4 sweep geometries per family, 2 controllers, 8 optimizer iterations, 3\n"
+            "validation sets; without it the paper's budgets (the whole sweep grid, 30 iterations,\n"
+            "10 sets of 5 periods). Both reports state their run time and resolution; README.md gives\n"
+            "both as measured. Example: docs/paper-report/report.md"
         ),
     )
-    paper.add_argument("--quick", action="store_true", help="reduced resolution: minutes instead of hours")
+    paper.add_argument("--quick", action="store_true", help="reduced resolution and budgets (see below)")
     paper.add_argument("--out", type=Path, default=Path("runs/paper"), metavar="DIR", help="output directory (default runs/paper)")
     _where(paper, batches=False)
     paper.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")

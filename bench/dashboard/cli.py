@@ -83,7 +83,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--quick", action="store_true", help="reduced benchmarks (under 5 minutes on 2 cores)")
+    parser.add_argument("--quick", action="store_true", help="reduced benchmarks (the last measured wall time is in README.md and dashboard.json)")
     parser.add_argument("--out", type=Path, default=None, help="output folder (default: bench/results in a checkout, ./bench-results elsewhere)")
     parser.add_argument("--jobs", type=int, default=2, help="benchmarks run at once (default 2; HIL always alone)")
     parser.add_argument("--timeout", type=float, default=None, help="stop a benchmark after this many seconds")
