@@ -11,6 +11,8 @@ from __future__ import annotations
 import sys
 
 MARK = "featherstar-probe:"
+#: The child's first line: it started and could import fmpy (an error before it is the probe's own).
+READY = "ready"
 
 
 def _say(step: str) -> None:
@@ -27,6 +29,9 @@ def main(argv: list[str]) -> int:
     fmi3 = version.startswith("3.")
     kw = dict(guid=guid, unzipDirectory=unzip_dir, modelIdentifier=identifier, instanceName="probe")
     pre = "fmi3" if fmi3 else "fmi2"
+    import fmpy.fmi2  # noqa: F401  (fmpy itself: a failure here is the probe's, not the FMU's)
+    import fmpy.fmi3  # noqa: F401
+    _say(READY)
     _say("load")
     if fmi3:
         from fmpy.fmi3 import FMU3Model, FMU3Slave
