@@ -20,6 +20,7 @@ from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 from zip_bombs import bomb
 
+pytestmark = pytest.mark.filterwarnings("ignore:Duplicate name:UserWarning")
 LIMITS = ZipLimits(max_members=8, max_member_bytes=64 << 10, max_total_bytes=128 << 10, max_ratio=20.0,
                    ratio_floor_bytes=4 << 10)
 SSD = b"""<?xml version="1.0"?><ssd:SystemStructureDescription version="1.0" name="b"
