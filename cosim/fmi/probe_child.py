@@ -11,6 +11,8 @@ from __future__ import annotations
 import sys
 
 MARK = "featherstar-probe:"
+#: The child's first line: it started and could import fmpy (an error before it is the probe's own).
+READY = "ready"
 
 
 def _say(step: str) -> None:
@@ -27,19 +29,26 @@ def main(argv: list[str]) -> int:
     fmi3 = version.startswith("3.")
     kw = dict(guid=guid, unzipDirectory=unzip_dir, modelIdentifier=identifier, instanceName="probe")
     pre = "fmi3" if fmi3 else "fmi2"
+    # fmpy itself, before READY: a failure here is the probe's, not the FMU's
+    from fmpy import calloc, free
+    from fmpy.fmi2 import (
+        FMU2Model,
+        FMU2Slave,
+        fmi2CallbackAllocateMemoryTYPE,
+        fmi2CallbackFreeMemoryTYPE,
+        fmi2CallbackFunctions,
+        fmi2CallbackLoggerTYPE,
+    )
+    from fmpy.fmi3 import FMU3Model, FMU3Slave
+
+    _say(READY)
     _say("load")
     if fmi3:
-        from fmpy.fmi3 import FMU3Model, FMU3Slave
-
         fmu = (FMU3Slave if mode == "cs" else FMU3Model)(**kw)
         instantiate = f"fmi3Instantiate{'CoSimulation' if mode == 'cs' else 'ModelExchange'}"
         _say(instantiate)
         fmu.instantiate(logMessage=_quiet)
     else:
-        from fmpy.fmi2 import FMU2Model, FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
-        from fmpy import calloc, free
-        from fmpy.fmi2 import fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE
-
         fmu = (FMU2Slave if mode == "cs" else FMU2Model)(**kw)
         callbacks = fmi2CallbackFunctions()
         callbacks.logger = fmi2CallbackLoggerTYPE(lambda *args: None)

@@ -20,6 +20,7 @@ from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 from zip_bombs import bomb
 
+pytestmark = pytest.mark.filterwarnings("ignore:Duplicate name:UserWarning")
 LIMITS = ZipLimits(max_members=8, max_member_bytes=64 << 10, max_total_bytes=128 << 10, max_ratio=20.0,
                    ratio_floor_bytes=4 << 10)
 SSD = b"""<?xml version="1.0"?><ssd:SystemStructureDescription version="1.0" name="b"
@@ -174,4 +175,55 @@ def test_the_cache_quota_refuses_a_package_that_does_not_fit(tmp_path, cache, mo
     monkeypatch.setenv("FEATHERSTAR_SSP_CACHE_MB", "1")
     with pytest.raises(SceneError, match=r"cache .* holds 0 kB of its 1.0 MB quota"):
         load_scene(package)
+    assert _leftovers(cache / "ssp") == []
+
+
+# --- generated packages ------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def exported(tmp_path_factory) -> Path:
+    from conftest import OSCILLATOR, make_scene
+    from featherstar.cosim.ssp.export import export_ssp
+
+    return export_ssp(make_scene(OSCILLATOR), tmp_path_factory.mktemp("ssp") / "osc.ssp")
+
+
+ADDITIONS = {
+    "traversal": (st.sampled_from(["../../evil.so", "/tmp/evil.so", "resources/../../evil", "..\\evil"]),
+                  b"x", True),
+    "high ratio": (st.just("resources/table.bin"), bytes(2 << 20), True),
+    "link": (st.just("resources/link.fmu"), b"/etc/passwd", True),
+    "duplicate": (st.just("SystemStructure.ssd"), b"<x/>", True),
+    "harmless": (SAFE.map(lambda name: f"documentation/{name}"), b"notes", False),
+}
+
+
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.data())
+def test_a_mutated_package_is_refused_in_one_line_leaving_nothing(exported, tmp_path, monkeypatch, data):
+    cache = tmp_path / f"cache-{len(list(tmp_path.iterdir()))}"
+    monkeypatch.setenv("FEATHERSTAR_CACHE", str(cache))
+    kinds = data.draw(st.lists(st.sampled_from(sorted(ADDITIONS)), min_size=1, max_size=3, unique=True))
+    package = cache.parent / f"{cache.name}.ssp"
+    refused_by = []
+    with zipfile.ZipFile(exported) as original, zipfile.ZipFile(package, "w", zipfile.ZIP_DEFLATED) as z:
+        for member in original.namelist():
+            z.writestr(member, original.read(member))
+        for kind in kinds:
+            names, content, refused = ADDITIONS[kind]
+            info = zipfile.ZipInfo(data.draw(names))
+            info.compress_type = zipfile.ZIP_DEFLATED
+            if kind == "link":
+                info.external_attr = (stat.S_IFLNK | 0o777) << 16
+            z.writestr(info, content)
+            if refused:
+                refused_by.append(info.filename)
+    if not refused_by:
+        load_scene(package)
+        return
+    with pytest.raises(SceneError) as refusal:
+        load_scene(package)
+    line = str(refusal.value)
+    assert "\n" not in line and f"SSP package '{package}'" in line, line
+    assert any(f"'{name}'" in line for name in refused_by), line
     assert _leftovers(cache / "ssp") == []

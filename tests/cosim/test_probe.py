@@ -146,3 +146,10 @@ SSD = """<?xml version="1.0" encoding="UTF-8"?>
   <ssd:DefaultExperiment startTime="0" stopTime="0.1"/>
 </ssd:SystemStructureDescription>
 """
+
+
+def test_a_probe_that_cannot_run_refuses_rather_than_trusts(crash_folder, monkeypatch):
+    fmu = build_crash("nowhere", "segv", 2, crash_folder)
+    monkeypatch.setattr(sys, "executable", "/bin/false")
+    with pytest.raises(StepError, match="could not be probed"):
+        run_scene(_scene(fmu))
