@@ -113,9 +113,10 @@ def read_plant_parameters(path: str | Path | None, items: Sequence[str] = ()) ->
     parameters: dict[str, float] = {}
     if path is not None:
         try:
-            loaded = json.loads(Path(path).read_text())
-        except (OSError, json.JSONDecodeError) as exc:
-            raise HILError(f"--plant-parameters {path}: cannot read a JSON object ({exc})") from None
+            loaded = json.loads(Path(path).read_text(encoding="utf-8"))
+        except (OSError, ValueError, RecursionError) as exc:   # ValueError: bad JSON or not UTF-8
+            raise HILError(f"--plant-parameters {path}: cannot read a JSON object "
+                           f"({type(exc).__name__}: {str(exc)[:120]})") from None
         if not isinstance(loaded, dict):
             raise HILError(f"--plant-parameters {path}: must hold a JSON object of NAME: number")
         parameters.update(loaded)
@@ -126,9 +127,9 @@ def read_plant_parameters(path: str | Path | None, items: Sequence[str] = ()) ->
         parameters[key.strip()] = value.strip()
     checked = {}
     for key, value in parameters.items():
-        try:
-            number = float(value)
-        except (TypeError, ValueError):
+        try:   # a JSON true is not a coefficient, though Python would read it as 1
+            number = math.nan if isinstance(value, bool) else float(value)
+        except (TypeError, ValueError, OverflowError):
             number = math.nan
         if not math.isfinite(number):
             raise HILError(f"plant parameter {key} = {value!r} must be a finite number")
