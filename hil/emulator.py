@@ -48,7 +48,7 @@ from .converter import CONVERSION_S, IntegratingConverter
 from .errors import HILError
 from .modbus_server import (DEVICE_FAILURE, ILLEGAL_ADDRESS, ILLEGAL_VALUE, ModbusTcpServer,
                               RateLimitedLog, spaces_for)
-from .lifecycle import BootSession, CommandWatchdog
+from .lifecycle import BootSession, CommandWatchdog, RestWatch
 from .plant import FlatPlatePlant, Plant
 from .timed_emulation import TimedFirmware
 from .registers import (Function, LoadCellMap, NumberField, ServoMap, SessionField, Status,
@@ -63,6 +63,8 @@ SERVO_RANGE_RAD = (-math.pi / 2, math.pi / 2)   # setpoint clamp when the map gi
 IDLE_TIMEOUT_S = 30.0                   # close connections silent for this long
 _STABLE_RATE_RAD_S = 0.05              # below this the feather (and the cell) is at rest
 TICK_S = 0.02                           # the plant is advanced at least this often, requests or not
+IDLE_TICK_S = 0.25                      # ... once it rests (nothing to integrate)
+IDLE_WATCHDOG_TICK_S = 0.1              # ... once it rests with the servo's watchdog armed
 # A served state older than this is "behind real time": 5 steps of a 250 Hz client, 0.1 rad of
 # the servo's fastest travel, 2 % of a 1 s stroke.
 LAG_LIMIT_S = 0.02
@@ -109,6 +111,7 @@ class Emulator:
         self.sessions = {"loadcell": BootSession(self.rng, clock),
                          "servo": BootSession(self.rng, clock)}
         self.watchdog = CommandWatchdog(clock)
+        self.rest = RestWatch()
         self.requests = 0
         self.plant_resets = 0
         self.log = RateLimitedLog()
@@ -133,6 +136,14 @@ class Emulator:
                 self._faults.pop(device, None)
             else:
                 self._faults[device] = fault
+
+    def tick_interval_s(self) -> float:
+        """How often `serve` ticks: TICK_S while the plant moves, seldom once it rests (the
+        watchdog, if armed, is checked at a tenth of a second)."""
+        if not self.rest.resting or self.timed.active:
+            return TICK_S
+        return IDLE_WATCHDOG_TICK_S if self.watchdog.timeout_s and not self.watchdog.tripped \
+            else IDLE_TICK_S
 
     def reboot(self, device: str) -> None:
         """Restart 'loadcell' or 'servo' behind the gateway, sockets kept: a new boot id, the
@@ -165,6 +176,7 @@ class Emulator:
         """The servo firmware's watchdog (called with the lock held): no request for its
         timeout, and the servo goes to its safe position until the next setpoint."""
         if self.watchdog.expired():
+            self.rest.disturb()
             self.timed.player.abort()
             lo, hi = self.setpoint_range_rad
             self.servo_setpoint_rad = min(max(0.0, lo), hi)
@@ -225,6 +237,13 @@ class Emulator:
     def _advance_plant(self) -> bool:
         now, wall0_s = self.clock(), time.perf_counter()
         if self._t_mono is not None and now > self._t_mono:
+            if self.rest.resting and not self.timed.active:
+                # Still for a second: integrating it would change nothing the registers show.
+                self._plant_time_s += now - self._t_mono
+                if self._converter is not None:
+                    self._converter.note(self._plant_time_s, self.plant.impulse_Ns)
+                self._t_mono = now
+                return True
             # Device time is never dropped while a trajectory plays or a log runs.
             cap_s = TIMED_MAX_ADVANCE_S if self.timed.active else self.max_advance_s
             angle_rad, dt_s = self.plant.angle_rad, min(now - self._t_mono, cap_s)
@@ -240,6 +259,7 @@ class Emulator:
                 self._t_mono = now
                 return False
             self._rate_rad_s = (self.plant.angle_rad - angle_rad) / dt_s
+            self.rest.note(dt_s, self._rate_rad_s, self.plant.thrust_N)
             if (dropped_s := now - self._t_mono - dt_s) > self.lag_limit_s:
                 self._behind(dropped_s, f"{dropped_s:.3f} s of plant time dropped (max_advance_s)")
             if (compute_s := time.perf_counter() - wall0_s) > self.lag_limit_s:
@@ -269,6 +289,7 @@ class Emulator:
 
     def _reset_plant(self, exc: Exception | None) -> None:
         """Back to rest: after a failed step (exc), or a servo reboot (None)."""
+        self.rest.disturb()
         if exc is not None:
             self.plant_resets += 1
             self.log(logging.ERROR, f"plant step failed ({type(exc).__name__}: {exc}); plant "
@@ -367,6 +388,7 @@ class Emulator:
     def _servo_write(self, registers: dict[int, int], address: int,
                      values: list[int]) -> int | None:
         m = self.servo_map
+        self.rest.disturb()      # a setpoint, an enable or a stroke may move the plant
         end = address + len(values)
         sp = m.setpoint
         setpoint_rad = None
@@ -417,10 +439,11 @@ async def _keep_time(emulator: Emulator, stop: asyncio.Event) -> None:
     """Tick the emulator every TICK_S, telling it when each tick was due."""
     due = time.monotonic()
     while not stop.is_set():
-        due += TICK_S
+        interval_s = emulator.tick_interval_s()
+        due += interval_s
         await asyncio.sleep(max(0.0, due - time.monotonic()))
         emulator.tick(due)
-        if time.monotonic() - due > TICK_S:
+        if time.monotonic() - due > interval_s:
             due = time.monotonic()   # held up: do not fire the missed ticks in a burst
 
 

@@ -132,7 +132,7 @@ def read_plant_parameters(path: str | Path | None, items: Sequence[str] = ()) ->
         except (TypeError, ValueError, OverflowError):
             number = math.nan
         if not math.isfinite(number):
-            raise HILError(f"plant parameter {key} = {value!r} must be a finite number")
+            raise HILError(f"plant parameter {key!r} = {value!r} must be a finite number")
         checked[key] = number
     return checked
 
@@ -148,7 +148,7 @@ def fmu_plant_parameters(parameters: Mapping[str, float]) -> tuple[dict[str, flo
         elif block in ("feather", "servo"):
             (feather if block == "feather" else servo)[name] = value
         else:
-            raise HILError(f"plant parameter {key}: the fmu plant has blocks 'feather' and 'servo'")
+            raise HILError(f"plant parameter {key!r}: the fmu plant has blocks 'feather' and 'servo'")
     return feather, servo
 
 
@@ -157,8 +157,10 @@ def flat_plate_plant(parameters: Mapping[str, float]) -> FlatPlatePlant:
     names = {f.name for f in fields(FlatPlatePlant) if f.init}
     unknown = sorted(set(parameters) - names)
     if unknown:
-        raise HILError(f"the flat-plate plant has no parameter(s) {', '.join(unknown)}; it has: {', '.join(sorted(names))}")
+        raise HILError(f"the flat-plate plant has no parameter(s) {', '.join(map(repr, unknown))}; "
+                       f"it has: {', '.join(sorted(names))}")
     negative = [k for k, v in parameters.items() if v < 0]
     if negative:
-        raise HILError(f"flat-plate plant parameter {negative[0]} = {parameters[negative[0]]} must be >= 0")
+        raise HILError(f"flat-plate plant parameter {negative[0]!r} = {parameters[negative[0]]} "
+                       "must be >= 0")
     return FlatPlatePlant(**parameters)
