@@ -65,12 +65,13 @@ _STABLE_RATE_RAD_S = 0.05              # below this the feather (and the cell) i
 TICK_S = 0.02                           # the plant is advanced at least this often, requests or not
 IDLE_TICK_S = 0.25                      # ... once it rests (nothing to integrate)
 IDLE_WATCHDOG_TICK_S = 0.1              # ... once it rests with the servo's watchdog armed
+WATCHDOG_LATE_S = 0.05                  # a tick later than this does not judge the watchdog
 # A served state older than this is "behind real time": 5 steps of a 250 Hz client, 0.1 rad of
 # the servo's fastest travel, 2 % of a 1 s stroke.
 LAG_LIMIT_S = 0.02
-# While a trajectory plays or a log runs, a starved emulator catches up this much device time
-# at once (its devices have their own clocks; only an idle plant may drop time).
-TIMED_MAX_ADVANCE_S = 10.0
+# While a trajectory plays or a log runs, the plant is advanced in pieces of this much device
+# time, requests answered in between (its devices have their own clocks; nothing is dropped).
+TIMED_PIECE_S = 0.02
 _SILENT_MAX_S = 30.0                    # a silent device answers eventually, so stop() ends
 _READ_FC = {Function.HOLDING: 3, Function.INPUT: 4}
 log = logging.getLogger(__name__)
@@ -140,7 +141,9 @@ class Emulator:
     def tick_interval_s(self) -> float:
         """How often `serve` ticks: TICK_S while the plant moves, seldom once it rests (the
         watchdog, if armed, is checked at a tenth of a second)."""
-        if not self.rest.resting or self.timed.active:
+        if self.timed.active:   # catch up at once, yielding to requests between pieces
+            return 0.0 if self.clock() - (self._t_mono or 0.0) > TICK_S else TICK_S
+        if not self.rest.resting:
             return TICK_S
         return IDLE_WATCHDOG_TICK_S if self.watchdog.timeout_s and not self.watchdog.tripped \
             else IDLE_TICK_S
@@ -220,6 +223,10 @@ class Emulator:
     def _advance(self) -> bool:
         """Advance the plant to now (a request); False (after resetting it) if its step failed."""
         self.requests += 1
+        if self.timed.active:
+            # Device-timed: the registers answer at once (clock, log head, player state); the
+            # plant catches up piece by piece in the ticks, as a device's own CPU would run it.
+            return True
         return self._advance_plant()
 
     def tick(self, due_s: float | None = None) -> None:
@@ -230,9 +237,14 @@ class Emulator:
             late_s = 0.0 if due_s is None else time.monotonic() - due_s
             if late_s > self.lag_limit_s:
                 self._behind(late_s, "the event loop was held up (process not scheduled?)")
-            if self._t_mono is None or self.clock() - self._t_mono >= TICK_S:
+            if self._t_mono is None or self.clock() - self._t_mono >= TICK_S \
+                    or self.timed.active:
                 self._advance_plant()
-            self._check_watchdog()
+            # A tick that comes late finds the client's commands still queued in the socket:
+            # the silence is the emulator's own, not the client's (real firmware takes its
+            # frames by interrupt). The next tick, after the queue, decides.
+            if late_s <= WATCHDOG_LATE_S:
+                self._check_watchdog()
 
     def _advance_plant(self) -> bool:
         now, wall0_s = self.clock(), time.perf_counter()
@@ -244,14 +256,18 @@ class Emulator:
                     self._converter.note(self._plant_time_s, self.plant.impulse_Ns)
                 self._t_mono = now
                 return True
-            # Device time is never dropped while a trajectory plays or a log runs.
-            cap_s = TIMED_MAX_ADVANCE_S if self.timed.active else self.max_advance_s
+            # Device time is never dropped while a trajectory plays or a log runs: the plant
+            # is advanced a piece per tick and may lag the clock (the samples carry their time).
+            timed = self.timed.active
+            cap_s = TIMED_PIECE_S if timed else self.max_advance_s
             angle_rad, dt_s = self.plant.angle_rad, min(now - self._t_mono, cap_s)
             try:
-                if self.timed.active:
+                if timed:
                     self.timed.advance(self._t_mono, dt_s)
-                else:
-                    self.step_plant(dt_s)
+                    self._t_mono += dt_s
+                    self._rate_rad_s = (self.plant.angle_rad - angle_rad) / dt_s
+                    return True
+                self.step_plant(dt_s)
                 if not (math.isfinite(self.plant.angle_rad) and math.isfinite(self.plant.thrust_N)):
                     raise HILError(f"plant state not finite (angle {self.plant.angle_rad})")
             except Exception as exc:   # one bad step must not poison the device for good

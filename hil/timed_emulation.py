@@ -2,10 +2,12 @@
 sample logs behind their registers (featherstar.hil.timed_registers), advanced with the plant.
 
 `TimedFirmware.advance(t0, dt)` replaces the emulator's one-piece plant advance while a
-trajectory plays or a log runs: the plant goes from event to event (a trajectory sample
-switching, a log sample due), so setpoints and samples fall at their device-clock times
-however late the emulator process got the CPU. A log sample of the integrating load cell is the
-mean force over its period (the impulse difference), as a sigma-delta transmitter reports.
+trajectory plays or a log runs: the plant goes from one trajectory sample switch to the next,
+so setpoints fall at their device-clock times however late the emulator process got the CPU.
+Log samples due inside a piece are taken from the states at its ends, linearly interpolated
+(the impulse is the integral of the thrust: smooth), which costs no extra plant step. A sample
+of the integrating load cell is the mean force over its period (the impulse difference), as a
+sigma-delta transmitter reports.
 """
 from __future__ import annotations
 
@@ -60,49 +62,59 @@ class TimedFirmware:
             self.logs[device].restart(None, 0.0)
 
     # --- the plant, from event to event --------------------------------------------------
-    def _next_event_mono(self, t_mono: float) -> float:
-        times = [self.mono_s("servo", self.player.next_switch_s(self.device_s("servo", t_mono)))]
-        for device, log in self.logs.items():
-            if log is not None:
-                times.append(self.mono_s(device, log.next_due_s()))
-        return min(times)
-
     def advance(self, t0_mono: float, dt_s: float) -> None:
-        """Advance the plant from wall time t0_mono by dt_s through every event on the way."""
+        """Advance the plant from wall time t0_mono by dt_s, a piece per trajectory sample."""
         emu, t, t_end = self.emu, t0_mono, t0_mono + dt_s
         while t < t_end:
             setpoint = self.player.setpoint_rad(self.device_s("servo", t))
             if setpoint is not None and emu.servo_enabled:
                 emu.plant.set_setpoint_rad(setpoint)
-            nxt = min(t_end, max(self._next_event_mono(t), t + 1e-7))
+            switch = self.mono_s("servo", self.player.next_switch_s(self.device_s("servo", t)))
+            # Pieces no longer than a log period: a sample interpolates within one piece only.
+            nxt = min(t_end, max(switch, t + 1e-7), t + self._max_piece_s())
+            before = self._state()
             emu.step_plant(nxt - t)
+            self._record_due(t, before, nxt, self._state())
             t = nxt
-            self._record_due(t)
 
-    def _record_due(self, t_mono: float) -> None:
+    def _max_piece_s(self) -> float:
+        periods = [log.period_s for log in self.logs.values()
+                   if log is not None and log.period_s is not None]
+        return min(periods, default=math.inf)
+
+    def _state(self) -> tuple[float, float]:
+        """(impulse or thrust, angle) of the plant now."""
+        plant = self.emu.plant
+        return getattr(plant, "impulse_Ns", plant.thrust_N), plant.angle_rad
+
+    def _record_due(self, t_a: float, state_a: tuple[float, float], t_b: float,
+                    state_b: tuple[float, float]) -> None:
+        """Take the samples due in (t_a, t_b], interpolating the plant's state."""
         for device, log in self.logs.items():
             if log is None or log.period_s is None:
                 continue
-            while self.mono_s(device, log.next_due_s()) <= t_mono + 1e-9:
+            while (t := self.mono_s(device, log.next_due_s())) <= t_b + 1e-9:
+                w = 0.0 if t_b <= t_a else min(max((t - t_a) / (t_b - t_a), 0.0), 1.0)
+                state = tuple(a + w * (b - a) for a, b in zip(state_a, state_b))
                 t_dev = log.next_due_s()
                 log.head += 1
-                self._put_entry(device, log, t_dev)
+                self._put_entry(device, log, t_dev, state)
 
-    def _put_entry(self, device: str, log: SampleLog, t_dev_s: float) -> None:
+    def _put_entry(self, device: str, log: SampleLog, t_dev_s: float,
+                   state: tuple[float, float]) -> None:
         emu = self.emu
         if device == "loadcell":
             field, unit = emu.loadcell_map.value, emu.loadcell_unit_registers()
-            impulse = getattr(emu.plant, "impulse_Ns", None)
-            if impulse is None:
-                force_N = emu.plant.thrust_N
+            if getattr(emu.plant, "impulse_Ns", None) is None:
+                force_N = state[0]
             else:
-                force_N = (impulse - self._impulse_at_sample_Ns) / log.period_s
-                self._impulse_at_sample_Ns = impulse
+                force_N = (state[0] - self._impulse_at_sample_Ns) / log.period_s
+                self._impulse_at_sample_Ns = state[0]
             value = (force_N + emu.preload_N - emu.tare_N + emu.rng.gauss(0.0, emu.noise_N))
             table = emu.loadcell_map.timed.log
         else:
             field, unit = emu.servo_map.position, emu.servo_unit_registers()
-            value, table = emu.plant.angle_rad, emu.servo_map.timed.log
+            value, table = state[1], emu.servo_map.timed.log
         words = _words32(round(t_dev_s * 1e6)) + encode_value(field, value / field.to_si)
         address = table.entry_address(log.head - 1)
         unit.update(zip(range(address, address + ENTRY_REGISTERS), words))

@@ -43,8 +43,12 @@ from .timed_registers import PlayerState
 
 log = logging.getLogger(__name__)
 POLL_S = 0.05             # the PC reads blocks this often; the rings hold seconds
+# No request has a deadline (the samples wait in the ring): a slow reply is waited for, a
+# failed poll retried this long, a timeout re-dialled (the boot id shows a restart).
+REQUEST_TIMEOUT_S = 1.0
+RETRY_S = 3.0
 LEAD_S = 0.3              # the trajectory starts this long after it is armed
-DONE_MARGIN_S = 0.1       # samples are read until this long after the stroke's end
+LOG_STALL_S = 10.0         # a log that gives no new sample for this long has stopped
 THRUST, ANGLE, COMMAND = f"{LOADCELL_BLOCK}.thrust_N", "servo.angle_rad", "controller.angle_rad"
 
 
@@ -155,15 +159,24 @@ class _TimedRun:
         self.polls = 0
 
     def _guarded(self, name: str, operation):
-        try:
-            return operation()
-        except FaultSignal as signal:
-            raise DeviceFault(name, signal.fault, self.t_s, signal.detail) from None
+        deadline = time.monotonic() + RETRY_S
+        while True:
+            try:
+                return operation()
+            except FaultSignal as signal:
+                if signal.fault.value not in ("timeout", "link_lost", "connect") \
+                        or time.monotonic() > deadline:
+                    raise DeviceFault(name, signal.fault, self.t_s, signal.detail) from None
+                log.warning("%s: %s (%s); retrying", name, signal.fault.value, signal.detail)
+                STOP.raise_if_requested()
+                time.sleep(0.02)
 
     def execute(self, target_rad: np.ndarray) -> None:
         servo, cell = self.servo, self.cell
         cell.start(0.0)              # connect and tare, the feather at rest
         servo.start(0.0)             # connect, enable, arm the watchdog, read where it is
+        for block in (servo, cell):  # the link is shared: set once, for both
+            block.link.set_timeout(max(block.link.timeout_s, REQUEST_TIMEOUT_S))
         commands, command = [], servo.command_rad
         for x in target_rad:         # as the streaming servo block limits its commands
             step = servo.rate_limit_rad_s * self.step_s
@@ -177,20 +190,37 @@ class _TimedRun:
         self._guarded(LOADCELL_BLOCK, self.clocks["loadcell"].sync)
         self.t_start_pc = time.monotonic() + LEAD_S
         self._guarded("servo", lambda: start_trajectory(servo, self.t_start_pc + sv_sync.offset_s))
+        last_news = time.monotonic()
         while True:
             STOP.raise_if_requested()
             time.sleep(POLL_S)
             self.t_s = time.monotonic() - self.t_start_pc
+            n_before = len(self.logs["loadcell"].times_s)
             done = self._poll()
-            if done and self.t_s > self.t_end_s + DONE_MARGIN_S:
+            if len(self.logs["loadcell"].times_s) > n_before:
+                last_news = time.monotonic()
+            elif time.monotonic() - last_news > LOG_STALL_S:
+                raise DeviceFault(LOADCELL_BLOCK, "stale", self.t_s,
+                                  f"no new sample for {LOG_STALL_S} s (its log stopped)")
+            if done and min(self._last_sample_s(n) for n in self.logs) > self.t_end_s + self.step_s:
                 break
         self._guarded("servo", self.clocks["servo"].sync)
         self._guarded(LOADCELL_BLOCK, self.clocks["loadcell"].sync)
-        self._poll()
+        self._guarded("servo", lambda: start_log(servo, 0.0))      # period 0: logs off
+        self._guarded(LOADCELL_BLOCK, lambda: start_log(cell, 0.0))
+
+    def _last_sample_s(self, name: str) -> float:
+        """Run time of the newest sample read from a device (the first clock sync)."""
+        times, clock = self.logs[name].times_s, self.clocks[name]
+        return -math.inf if not times else times[-1] - clock.syncs[0].offset_s - self.t_start_pc
 
     def _poll(self) -> bool:
         """One block read of both devices; True once the servo has played the whole stroke."""
         self.polls += 1
+        wd = self.servo.map.watchdog
+        if wd is not None:   # a live client re-arms the device's watchdog (it feeds on writes)
+            self._guarded("servo", lambda: self.servo.link.write_one(
+                wd.address, wd.timeout_ms, self.servo.url.unit))
         for name, block in (("servo", self.servo), ("loadcell", self.cell)):
             device = LOADCELL_BLOCK if name == "loadcell" else name
             watch = self.sessions.get(name)
@@ -205,10 +235,6 @@ class _TimedRun:
             if lost:
                 self.events.append({"t_s": self.t_s, "kind": "gap", "device": device,
                                     "detail": f"{lost} samples overwritten before they were read"})
-        wd = self.servo.map.watchdog
-        if wd is not None:   # a live client re-arms the device's watchdog (it feeds on writes)
-            self._guarded("servo", lambda: self.servo.link.write_one(
-                wd.address, wd.timeout_ms, self.servo.url.unit))
         state = self._guarded("servo", lambda: player_state(self.servo))
         if state is PlayerState.IDLE and self.t_s > 0:
             raise DeviceFault("servo", "device_error", self.t_s,
@@ -227,7 +253,7 @@ class _TimedRun:
         t_lc, thrust = self._run_times("loadcell")
         t_sv, angle = self._run_times("servo")
         # Samples from the start to one past the end, so the last period is whole.
-        keep = (t_lc >= 0.0) & (t_lc <= self.t_end_s + self.step_s)
+        keep = (t_lc >= -self.step_s) & (t_lc <= self.t_end_s + self.step_s)
         t, thrust = t_lc[keep], thrust[keep]
         signals = {THRUST: thrust,
                    ANGLE: np.interp(t, t_sv, angle) if len(t_sv) else np.full(len(t), math.nan),
