@@ -9,8 +9,10 @@ import argparse
 import asyncio
 import ipaddress
 import logging
+import errno
 import math
 import signal
+import socket
 import sys
 
 from .emulator import IDLE_TIMEOUT_S, LOADCELL_UNIT, SERVO_UNIT, Emulator, serve
@@ -80,8 +82,8 @@ def emulate(args: argparse.Namespace) -> int:
     """Run the emulator until interrupted; returns the exit status."""
     if not 0 <= args.port <= 65535:
         raise HILError(f"--port {args.port}: valid values are 0..65535")
-    if not args.noise_N >= 0:
-        raise HILError(f"--noise-N {args.noise_N}: must be >= 0")
+    if not (math.isfinite(args.noise_N) and args.noise_N >= 0):
+        raise HILError(f"--noise-N {args.noise_N}: must be a finite number >= 0 (N)")
     if not (math.isfinite(args.idle_timeout_s) and args.idle_timeout_s > 0):
         raise HILError(f"--idle-timeout-s {args.idle_timeout_s}: must be a positive number")
     if not is_loopback(args.host):
@@ -90,8 +92,9 @@ def emulate(args: argparse.Namespace) -> int:
                            "authentication, so binding it needs --allow-remote")
         print(f"featherstar emulate: WARNING: serving on {args.host}: anyone who can reach it "
               "can read the load cell and move the emulated servo", file=sys.stderr)
-    # Maps first: a typo must not wait for the FMUs to build.
+    # Maps and the port first: a typo or a busy port must not wait for the FMUs to build.
     loadcell_map, servo_map = load_loadcell_map(args.loadcell_map), load_servo_map(args.servo_map)
+    check_port_free(args.host, args.port)
     logging.basicConfig(level=logging.WARNING, format="%(asctime)s %(name)s: %(message)s")
     hidden = read_plant_parameters(args.plant_parameters, args.plant_set)
     if args.plant == "fmu":
@@ -121,7 +124,22 @@ def emulate(args: argparse.Namespace) -> int:
         asyncio.run(run())
     except KeyboardInterrupt:
         pass
+    except OSError as exc:   # the port was taken between the check and the bind
+        raise HILError(f"--host {args.host} --port {args.port}: cannot listen there "
+                       f"({exc.strerror or exc})") from None
     return 0
+
+
+def check_port_free(host: str, port: int) -> None:
+    """Refuse a port already in use (or a host that is not ours) before any work starts."""
+    try:
+        with socket.create_server((host, port)):
+            pass
+    except OSError as exc:
+        hint = "; another emulator running? pick another --port or 0" \
+            if exc.errno == errno.EADDRINUSE else ""
+        raise HILError(f"--host {host} --port {port}: cannot listen there "
+                       f"({exc.strerror or exc}){hint}") from None
 
 
 def is_loopback(host: str) -> bool:

@@ -48,8 +48,9 @@ from .converter import CONVERSION_S, IntegratingConverter
 from .errors import HILError
 from .modbus_server import (DEVICE_FAILURE, ILLEGAL_ADDRESS, ILLEGAL_VALUE, ModbusTcpServer,
                               RateLimitedLog, spaces_for)
-from .lifecycle import BootSession, CommandWatchdog
+from .lifecycle import BootSession, CommandWatchdog, RestWatch
 from .plant import FlatPlatePlant, Plant
+from .timed_emulation import TimedFirmware
 from .registers import (Function, LoadCellMap, NumberField, ServoMap, SessionField, Status,
                         StatusField, load_loadcell_map, load_servo_map)
 
@@ -62,9 +63,15 @@ SERVO_RANGE_RAD = (-math.pi / 2, math.pi / 2)   # setpoint clamp when the map gi
 IDLE_TIMEOUT_S = 30.0                   # close connections silent for this long
 _STABLE_RATE_RAD_S = 0.05              # below this the feather (and the cell) is at rest
 TICK_S = 0.02                           # the plant is advanced at least this often, requests or not
+IDLE_TICK_S = 0.25                      # ... once it rests (nothing to integrate)
+IDLE_WATCHDOG_TICK_S = 0.1              # ... once it rests with the servo's watchdog armed
+WATCHDOG_LATE_S = 0.05                  # a tick later than this does not judge the watchdog
 # A served state older than this is "behind real time": 5 steps of a 250 Hz client, 0.1 rad of
 # the servo's fastest travel, 2 % of a 1 s stroke.
 LAG_LIMIT_S = 0.02
+# While a trajectory plays or a log runs, the plant is advanced in pieces of this much device
+# time, requests answered in between (its devices have their own clocks; nothing is dropped).
+TIMED_PIECE_S = 0.02
 _SILENT_MAX_S = 30.0                    # a silent device answers eventually, so stop() ends
 _READ_FC = {Function.HOLDING: 3, Function.INPUT: 4}
 log = logging.getLogger(__name__)
@@ -80,7 +87,8 @@ class Emulator:
     def __init__(self, loadcell_map: LoadCellMap, servo_map: ServoMap, plant: Plant | None = None,
                  *, noise_N: float = 0.01, seed: int | None = None, preload_N: float = -0.3,
                  capacity_N: float = LOADCELL_CAPACITY_N, max_advance_s: float = 0.5,
-                 lag_limit_s: float = LAG_LIMIT_S, conversion_s: float = CONVERSION_S) -> None:
+                 lag_limit_s: float = LAG_LIMIT_S, conversion_s: float = CONVERSION_S,
+                 clock: Callable[[], float] = time.monotonic) -> None:
         self.loadcell_map, self.servo_map = loadcell_map, servo_map
         self.plant: Plant = plant if plant is not None else FlatPlatePlant()
         self.noise_N, self.preload_N, self.capacity_N = noise_N, preload_N, capacity_N
@@ -91,6 +99,8 @@ class Emulator:
         self.worst_lag_s = 0.0
         self._lag_unread = {"loadcell": False, "servo": False}   # latched until the status is read
         self.rng = random.Random(seed)
+        # The emulated devices' own clock (monotonic seconds); a test may drive it by hand.
+        self.clock = clock
         self.lock = threading.Lock()
         self.tare_N = 0.0
         self._plant_time_s = 0.0      # time the plant was advanced by
@@ -99,8 +109,10 @@ class Emulator:
         self.servo_enabled = servo_map.enable is None
         self.servo_setpoint_rad: float | None = None
         # One boot id per device: behind a gateway each transmitter restarts on its own.
-        self.sessions = {"loadcell": BootSession(self.rng), "servo": BootSession(self.rng)}
-        self.watchdog = CommandWatchdog()
+        self.sessions = {"loadcell": BootSession(self.rng, clock),
+                         "servo": BootSession(self.rng, clock)}
+        self.watchdog = CommandWatchdog(clock)
+        self.rest = RestWatch()
         self.requests = 0
         self.plant_resets = 0
         self.log = RateLimitedLog()
@@ -109,6 +121,7 @@ class Emulator:
         self._rate_rad_s = 0.0        # measured across requests: the Plant protocol has no rate
         self._registers = {LOADCELL_UNIT: {"holding": {}, "input": {}},
                            SERVO_UNIT: {"holding": {}, "input": {}}}
+        self.timed = TimedFirmware(self)
         sp = servo_map.setpoint
         lo, hi = SERVO_RANGE_RAD
         self.setpoint_range_rad = (lo if sp.min is None else sp.min * sp.to_si,
@@ -125,6 +138,16 @@ class Emulator:
             else:
                 self._faults[device] = fault
 
+    def tick_interval_s(self) -> float:
+        """How often `serve` ticks: TICK_S while the plant moves, seldom once it rests (the
+        watchdog, if armed, is checked at a tenth of a second)."""
+        if self.timed.active:   # catch up at once, yielding to requests between pieces
+            return 0.0 if self.clock() - (self._t_mono or 0.0) > TICK_S else TICK_S
+        if not self.rest.resting:
+            return TICK_S
+        return IDLE_WATCHDOG_TICK_S if self.watchdog.timeout_s and not self.watchdog.tripped \
+            else IDLE_TICK_S
+
     def reboot(self, device: str) -> None:
         """Restart 'loadcell' or 'servo' behind the gateway, sockets kept: a new boot id, the
         uptime from zero, the registers cleared; the load cell forgets its tare, the servo its
@@ -135,6 +158,7 @@ class Emulator:
             self.sessions[device].boot()
             unit = LOADCELL_UNIT if device == "loadcell" else SERVO_UNIT
             self._registers[unit] = {"holding": {}, "input": {}}
+            self.timed.reboot(device)
             if device == "loadcell":
                 self.tare_N = 0.0
             else:
@@ -155,6 +179,8 @@ class Emulator:
         """The servo firmware's watchdog (called with the lock held): no request for its
         timeout, and the servo goes to its safe position until the next setpoint."""
         if self.watchdog.expired():
+            self.rest.disturb()
+            self.timed.player.abort()
             lo, hi = self.setpoint_range_rad
             self.servo_setpoint_rad = min(max(0.0, lo), hi)
             self.plant.set_setpoint_rad(self.servo_setpoint_rad)
@@ -175,6 +201,9 @@ class Emulator:
             + (sv.session.spans() if sv.session else [])
         sv_write = [(sv.setpoint.address, 2)] + ([(sv.enable.address, 1)] if sv.enable else []) \
             + ([(sv.watchdog.address, 1)] if sv.watchdog else [])
+        for m, read, write in ((lc, lc_read, lc_write), (sv, sv_read, sv_write)):
+            for _space, _name, address, count, writable in m.timed.spans(m.read_function.value):
+                (write if writable else read).append((address, count))
         return {LOADCELL_UNIT: (spaces_for(lc.read_function.value, lc_read, lc_write),
                                 self._loadcell_action),
                 SERVO_UNIT: (spaces_for(sv.read_function.value, sv_read, sv_write),
@@ -194,6 +223,10 @@ class Emulator:
     def _advance(self) -> bool:
         """Advance the plant to now (a request); False (after resetting it) if its step failed."""
         self.requests += 1
+        if self.timed.active:
+            # Device-timed: the registers answer at once (clock, log head, player state); the
+            # plant catches up piece by piece in the ticks, as a device's own CPU would run it.
+            return True
         return self._advance_plant()
 
     def tick(self, due_s: float | None = None) -> None:
@@ -204,19 +237,37 @@ class Emulator:
             late_s = 0.0 if due_s is None else time.monotonic() - due_s
             if late_s > self.lag_limit_s:
                 self._behind(late_s, "the event loop was held up (process not scheduled?)")
-            if self._t_mono is None or time.monotonic() - self._t_mono >= TICK_S:
+            if self._t_mono is None or self.clock() - self._t_mono >= TICK_S \
+                    or self.timed.active:
                 self._advance_plant()
-            self._check_watchdog()
+            # A tick that comes late finds the client's commands still queued in the socket:
+            # the silence is the emulator's own, not the client's (real firmware takes its
+            # frames by interrupt). The next tick, after the queue, decides.
+            if late_s <= WATCHDOG_LATE_S:
+                self._check_watchdog()
 
     def _advance_plant(self) -> bool:
-        now = time.monotonic()
+        now, wall0_s = self.clock(), time.perf_counter()
         if self._t_mono is not None and now > self._t_mono:
-            angle_rad, dt_s = self.plant.angle_rad, min(now - self._t_mono, self.max_advance_s)
-            try:
-                self.plant.advance(dt_s)
-                self._plant_time_s += dt_s
+            if self.rest.resting and not self.timed.active:
+                # Still for a second: integrating it would change nothing the registers show.
+                self._plant_time_s += now - self._t_mono
                 if self._converter is not None:
                     self._converter.note(self._plant_time_s, self.plant.impulse_Ns)
+                self._t_mono = now
+                return True
+            # Device time is never dropped while a trajectory plays or a log runs: the plant
+            # is advanced a piece per tick and may lag the clock (the samples carry their time).
+            timed = self.timed.active
+            cap_s = TIMED_PIECE_S if timed else self.max_advance_s
+            angle_rad, dt_s = self.plant.angle_rad, min(now - self._t_mono, cap_s)
+            try:
+                if timed:
+                    self.timed.advance(self._t_mono, dt_s)
+                    self._t_mono += dt_s
+                    self._rate_rad_s = (self.plant.angle_rad - angle_rad) / dt_s
+                    return True
+                self.step_plant(dt_s)
                 if not (math.isfinite(self.plant.angle_rad) and math.isfinite(self.plant.thrust_N)):
                     raise HILError(f"plant state not finite (angle {self.plant.angle_rad})")
             except Exception as exc:   # one bad step must not poison the device for good
@@ -224,12 +275,26 @@ class Emulator:
                 self._t_mono = now
                 return False
             self._rate_rad_s = (self.plant.angle_rad - angle_rad) / dt_s
+            self.rest.note(dt_s, self._rate_rad_s, self.plant.thrust_N)
             if (dropped_s := now - self._t_mono - dt_s) > self.lag_limit_s:
                 self._behind(dropped_s, f"{dropped_s:.3f} s of plant time dropped (max_advance_s)")
-            if (compute_s := time.monotonic() - now) > self.lag_limit_s:
+            if (compute_s := time.perf_counter() - wall0_s) > self.lag_limit_s:
                 self._behind(compute_s, f"advancing the plant {dt_s * 1e3:.1f} ms took {compute_s * 1e3:.1f} ms")
         self._t_mono = now
         return True
+
+    def step_plant(self, dt_s: float) -> None:
+        """Advance the plant by dt_s at its current setpoint (the converter notes the impulse)."""
+        self.plant.advance(dt_s)
+        self._plant_time_s += dt_s
+        if self._converter is not None:
+            self._converter.note(self._plant_time_s, self.plant.impulse_Ns)
+
+    def loadcell_unit_registers(self) -> dict[int, int]:
+        return self._registers[LOADCELL_UNIT][self.loadcell_map.read_function.value]
+
+    def servo_unit_registers(self) -> dict[int, int]:
+        return self._registers[SERVO_UNIT][self.servo_map.read_function.value]
 
     def _behind(self, lag_s: float, why: str) -> None:
         self.lag_events += 1
@@ -240,6 +305,7 @@ class Emulator:
 
     def _reset_plant(self, exc: Exception | None) -> None:
         """Back to rest: after a failed step (exc), or a servo reboot (None)."""
+        self.rest.disturb()
         if exc is not None:
             self.plant_resets += 1
             self.log(logging.ERROR, f"plant step failed ({type(exc).__name__}: {exc}); plant "
@@ -297,7 +363,7 @@ class Emulator:
                         and values[m.tare.address - address] == m.tare.value:
                     self.tare_N = self.converted_force_N()
                 _put(registers, address, values)
-                return None
+                return self.timed.on_write("loadcell", registers, address, count)
             if function_code == _READ_FC[m.read_function] and \
                     self._faults.get("loadcell") != "freeze":
                 force_N = self.converted_force_N()
@@ -308,6 +374,7 @@ class Emulator:
                          self._status(m.status, "loadcell", abs(force_N) > self.capacity_N, address, count))
             if function_code == _READ_FC[m.read_function]:
                 self._put_session(registers, m.session, "loadcell")
+                self.timed.fill_reads("loadcell", registers)
             return self._read(registers, address, count)
 
     async def _servo_action(self, function_code: int, space: str, address: int, count: int,
@@ -331,11 +398,13 @@ class Emulator:
                     _put(registers, m.status.address, self._status(m.status, "servo", False, address, count))
             if function_code == _READ_FC[m.read_function]:
                 self._put_session(registers, m.session, "servo")
+                self.timed.fill_reads("servo", registers)
             return self._read(registers, address, count)
 
     def _servo_write(self, registers: dict[int, int], address: int,
                      values: list[int]) -> int | None:
         m = self.servo_map
+        self.rest.disturb()      # a setpoint, an enable or a stroke may move the plant
         end = address + len(values)
         sp = m.setpoint
         setpoint_rad = None
@@ -352,13 +421,16 @@ class Emulator:
             values = list(values)
             values[offset:offset + 2] = encode_value(sp, setpoint_rad / sp.to_si)
         _put(registers, address, values)
-        if setpoint_rad is not None:
+        if setpoint_rad is not None:   # the client takes over: a playing stroke stops
             self.servo_setpoint_rad = setpoint_rad
             self.watchdog.resume()
+            self.timed.player.abort()
         if m.enable is not None and address <= m.enable.address < end:
             self.servo_enabled = values[m.enable.address - address] == m.enable.value
         if m.watchdog is not None and address <= m.watchdog.address < end:
             self.watchdog.arm(values[m.watchdog.address - address])
+        if (refused := self.timed.on_write("servo", registers, address, len(values))) is not None:
+            return refused
         if self.servo_enabled and self.servo_setpoint_rad is not None:
             self.plant.set_setpoint_rad(self.servo_setpoint_rad)
         return None
@@ -383,10 +455,11 @@ async def _keep_time(emulator: Emulator, stop: asyncio.Event) -> None:
     """Tick the emulator every TICK_S, telling it when each tick was due."""
     due = time.monotonic()
     while not stop.is_set():
-        due += TICK_S
+        interval_s = emulator.tick_interval_s()
+        due += interval_s
         await asyncio.sleep(max(0.0, due - time.monotonic()))
         emulator.tick(due)
-        if time.monotonic() - due > TICK_S:
+        if time.monotonic() - due > interval_s:
             due = time.monotonic()   # held up: do not fire the missed ticks in a burst
 
 

@@ -77,6 +77,12 @@ class FmuPlant:
                               outputs=["servo.angle_rad", "feather.thrust_N"])
         except SceneError as exc:
             raise HILError(f"FmuPlant: {exc}") from None
+        # A scene may name parameters another morphology has; a hidden coefficient the plant
+        # would ignore must not be reported as applied (a misspelt drag_coef, say).
+        ignored = [note for name in ("servo", "feather") for note in self._plan.blocks[name].notes
+                   if "ignored" in note]
+        if ignored:
+            raise HILError(f"plant parameter(s) not applied: {'; '.join(ignored)}")
         self._sim: Simulator | None = None
         self._start()
 

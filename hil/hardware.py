@@ -39,11 +39,22 @@ UNACTUATED_WARNING = ("the load cell is real but the servo is simulated: nothing
                       "commands moves the feather it measures")
 
 
-def split_url(slot: str, url: str) -> tuple[str, dict[str, float]]:
-    """The device URL without the block options, and the block options (seconds, > 0)."""
+CLOCKS = ("pc", "device")
+
+
+def split_url(slot: str, url: str) -> tuple[str, dict[str, Any]]:
+    """The device URL without the block options, and the block options (seconds, > 0; and
+    `clock`, pc or device)."""
     parts = urlsplit(url)
-    device, options = [], {}
+    device: list[tuple[str, str]] = []
+    options: dict[str, Any] = {}
     for key, value in parse_qsl(parts.query, keep_blank_values=True):
+        if key == "clock":
+            if value not in CLOCKS or "clock" in options:
+                raise SceneError(f"--hardware {slot}: clock={value!r}; valid values: "
+                                 f"{', '.join(CLOCKS)} (once)")
+            options["clock"] = value
+            continue
         if key not in BLOCK_OPTIONS[slot]:
             device.append((key, value))
             continue
@@ -102,19 +113,25 @@ def with_hardware(scene: Scene, hardware: Mapping[str, str], *, step_s: float = 
                          "measure a feather that no command moves (the servo is simulated); "
                          "add --hardware servo=URL, or --allow-unactuated-loadcell to measure "
                          "anyway with a warning")
+    split = {slot: split_url(slot, url) for slot, url in hardware.items()}
+    clocks = {options.pop("clock", "pc") for _, options in split.values()}
+    if len(clocks) > 1 or (clocks == {"device"} and set(split) != set(SLOTS)):
+        raise SceneError("--hardware ...&clock=device: both the servo and the load cell must "
+                         "say it (a device-timed run plays and samples on the devices' clocks)")
+    timed = {"clock": "device"} if clocks == {"device"} else {}
     data = scene.to_dict()
     blocks = data["blocks"]
     if "servo" in hardware:
         if blocks.get("servo", {}).get("kind") != "fmu":
             raise SceneError(f"scene '{scene.name}' has no simulated 'servo' block to replace")
-        url, options = split_url("servo", hardware["servo"])
+        url, options = split["servo"]
         blocks["servo"] = {"kind": "python", "factory": _factory(Servo),
-                           "parameters": {"url": url, **options}}
+                           "parameters": {"url": url, **options, **timed}}
         data["connections"] = [c for c in data["connections"]
                                if not c.replace(" ", "").endswith("->servo.load_torque_Nm")]
     if "loadcell" in hardware:
-        url, options = split_url("loadcell", hardware["loadcell"])
-        parameters: dict[str, Any] = {"url": url, **options}
+        url, options = split["loadcell"]
+        parameters: dict[str, Any] = {"url": url, **options, **timed}
         if "servo" not in hardware:
             parameters["warning"] = UNACTUATED_WARNING
         blocks[LOADCELL_BLOCK] = {"kind": "python", "factory": _factory(LoadCell),

@@ -74,3 +74,28 @@ class CommandWatchdog:
     def resume(self) -> None:
         """A new setpoint: the servo follows commands again."""
         self.tripped = False
+
+
+class RestWatch:
+    """Whether the plant has sat still long enough that integrating it would change nothing the
+    registers show (the idle emulator then computes nothing: its CPU use near zero).
+
+    Still = |rate| below `rate_rad_s` and |thrust| below `thrust_N` (a thousandth of the load
+    cell's noise), for `after_s` of plant time on end. Anything that can move the plant (a
+    write, a reboot, a reset, the watchdog, a device-timed stroke) calls `disturb()`."""
+
+    def __init__(self, rate_rad_s: float = 1e-4, thrust_N: float = 1e-5,
+                 after_s: float = 1.0) -> None:
+        self.rate_rad_s, self.thrust_N, self.after_s = rate_rad_s, thrust_N, after_s
+        self.still_s = 0.0
+
+    def note(self, dt_s: float, rate_rad_s: float, thrust_N: float) -> None:
+        still = abs(rate_rad_s) < self.rate_rad_s and abs(thrust_N) < self.thrust_N
+        self.still_s = self.still_s + dt_s if still else 0.0
+
+    def disturb(self) -> None:
+        self.still_s = 0.0
+
+    @property
+    def resting(self) -> bool:
+        return self.still_s >= self.after_s

@@ -113,9 +113,10 @@ def read_plant_parameters(path: str | Path | None, items: Sequence[str] = ()) ->
     parameters: dict[str, float] = {}
     if path is not None:
         try:
-            loaded = json.loads(Path(path).read_text())
-        except (OSError, json.JSONDecodeError) as exc:
-            raise HILError(f"--plant-parameters {path}: cannot read a JSON object ({exc})") from None
+            loaded = json.loads(Path(path).read_text(encoding="utf-8"))
+        except (OSError, ValueError, RecursionError) as exc:   # ValueError: bad JSON or not UTF-8
+            raise HILError(f"--plant-parameters {path}: cannot read a JSON object "
+                           f"({type(exc).__name__}: {str(exc)[:120]})") from None
         if not isinstance(loaded, dict):
             raise HILError(f"--plant-parameters {path}: must hold a JSON object of NAME: number")
         parameters.update(loaded)
@@ -126,12 +127,12 @@ def read_plant_parameters(path: str | Path | None, items: Sequence[str] = ()) ->
         parameters[key.strip()] = value.strip()
     checked = {}
     for key, value in parameters.items():
-        try:
-            number = float(value)
-        except (TypeError, ValueError):
+        try:   # a JSON true is not a coefficient, though Python would read it as 1
+            number = math.nan if isinstance(value, bool) else float(value)
+        except (TypeError, ValueError, OverflowError):
             number = math.nan
         if not math.isfinite(number):
-            raise HILError(f"plant parameter {key} = {value!r} must be a finite number")
+            raise HILError(f"plant parameter {key!r} = {value!r} must be a finite number")
         checked[key] = number
     return checked
 
@@ -147,7 +148,7 @@ def fmu_plant_parameters(parameters: Mapping[str, float]) -> tuple[dict[str, flo
         elif block in ("feather", "servo"):
             (feather if block == "feather" else servo)[name] = value
         else:
-            raise HILError(f"plant parameter {key}: the fmu plant has blocks 'feather' and 'servo'")
+            raise HILError(f"plant parameter {key!r}: the fmu plant has blocks 'feather' and 'servo'")
     return feather, servo
 
 
@@ -156,8 +157,10 @@ def flat_plate_plant(parameters: Mapping[str, float]) -> FlatPlatePlant:
     names = {f.name for f in fields(FlatPlatePlant) if f.init}
     unknown = sorted(set(parameters) - names)
     if unknown:
-        raise HILError(f"the flat-plate plant has no parameter(s) {', '.join(unknown)}; it has: {', '.join(sorted(names))}")
+        raise HILError(f"the flat-plate plant has no parameter(s) {', '.join(map(repr, unknown))}; "
+                       f"it has: {', '.join(sorted(names))}")
     negative = [k for k, v in parameters.items() if v < 0]
     if negative:
-        raise HILError(f"flat-plate plant parameter {negative[0]} = {parameters[negative[0]]} must be >= 0")
+        raise HILError(f"flat-plate plant parameter {negative[0]!r} = {parameters[negative[0]]} "
+                       "must be >= 0")
     return FlatPlatePlant(**parameters)

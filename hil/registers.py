@@ -45,6 +45,8 @@ from pathlib import Path
 from typing import Any, Sequence
 
 from .errors import HILConfigError
+from .map_reader import MapReader, map_address
+from .timed_registers import TimedTables, parse_timed
 
 
 class Function(str, enum.Enum):
@@ -143,6 +145,7 @@ class LoadCellMap:
     status: StatusField | None
     tare: CommandField | None
     session: SessionField | None = None
+    timed: TimedTables = TimedTables(None, None, None)
 
 
 @dataclass(frozen=True)
@@ -157,82 +160,17 @@ class ServoMap:
     enable: CommandField | None
     session: SessionField | None = None
     watchdog: WatchdogField | None = None
+    timed: TimedTables = TimedTables(None, None, None)
 
 
-_SECTIONS = {"loadcell": {"device", "value", "status", "tare", "session"},
+_SECTIONS = {"loadcell": {"device", "value", "status", "tare", "session", "clock", "log"},
              "servo": {"device", "setpoint", "position", "status", "enable", "session",
-                       "watchdog"}}
+                       "watchdog", "clock", "trajectory", "log"}}
 _NUMBER_KEYS = {"address", "type", "word_order", "unit", "scale", "offset", "decimals",
                 "decimals_address", "min", "max"}
 
 
-class _Reader:
-    """Typed access to one map file with errors naming the file, the key and the valid values."""
-
-    def __init__(self, source: str) -> None:
-        self.source = source
-
-    def fail(self, where: str, message: str) -> HILConfigError:
-        return HILConfigError(f"register map {self.source}: {where}: {message}")
-
-    def table(self, doc: dict[str, Any], name: str, required: bool) -> dict[str, Any] | None:
-        if name not in doc:
-            if required:
-                raise self.fail(f"[{name}]", "missing section")
-            return None
-        if not isinstance(doc[name], dict):
-            raise self.fail(f"[{name}]", "must be a table")
-        return doc[name]
-
-    def check_keys(self, section: str, table: dict[str, Any], valid: set[str]) -> None:
-        for key in table:
-            if key not in valid:
-                raise self.fail(f"[{section}] {key}",
-                                f"unknown key; valid keys: {', '.join(sorted(valid))}")
-
-    def choice(self, section: str, table: dict[str, Any], key: str, valid: Sequence[Any],
-               default: Any = None) -> Any:
-        if key not in table:
-            if default is None:
-                raise self.fail(f"[{section}] {key}",
-                                f"missing; valid values: {', '.join(map(str, valid))}")
-            return default
-        value = table[key]
-        # Compare types too: TOML `true` == 1 and `1.0` == 1 in Python, neither is a valid base.
-        if not any(value == v and type(value) is type(v) for v in valid):
-            raise self.fail(f"[{section}] {key} = {value!r}",
-                            f"not valid; valid values: {', '.join(map(str, valid))}")
-        return value
-
-    def integer(self, section: str, table: dict[str, Any], key: str, lo: int, hi: int,
-                required: bool = False) -> int | None:
-        if key not in table:
-            if required:
-                raise self.fail(f"[{section}] {key}", f"missing; an integer in {lo}..{hi}")
-            return None
-        value = table[key]
-        if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
-            raise self.fail(f"[{section}] {key} = {value!r}", f"must be an integer in {lo}..{hi}")
-        return value
-
-    def number(self, section: str, table: dict[str, Any], key: str,
-               default: float | None) -> float | None:
-        if key not in table:
-            return default
-        value = table[key]
-        if isinstance(value, bool) or not isinstance(value, (int, float)) \
-                or not math.isfinite(value):
-            raise self.fail(f"[{section}] {key} = {value!r}", "must be a finite number")
-        return float(value)
-
-
-def _address(r: _Reader, section: str, table: dict[str, Any], key: str, base: int,
-             required: bool = True) -> int | None:
-    printed = r.integer(section, table, key, base, 65535 + base, required)
-    return None if printed is None else printed - base
-
-
-def _number_field(r: _Reader, section: str, table: dict[str, Any], kind: str,
+def _number_field(r: MapReader, section: str, table: dict[str, Any], kind: str,
                   base: int) -> NumberField:
     r.check_keys(section, table, _NUMBER_KEYS)
     value_type = ValueType(r.choice(section, table, "type", [t.value for t in ValueType]))
@@ -242,7 +180,7 @@ def _number_field(r: _Reader, section: str, table: dict[str, Any], kind: str,
     if scale == 0.0:
         raise r.fail(f"[{section}] scale = 0", "must be non-zero")
     decimals = r.integer(section, table, "decimals", 0, MAX_DECIMALS)
-    decimals_address = _address(r, section, table, "decimals_address", base, required=False)
+    decimals_address = map_address(r, section, table, "decimals_address", base, required=False)
     if value_type is ValueType.FLOAT32 and (decimals is not None or decimals_address is not None):
         raise r.fail(f"[{section}]", "decimals / decimals_address apply to type = 'int32' only")
     if value_type is ValueType.INT32 and (decimals is None) == (decimals_address is None):
@@ -251,42 +189,45 @@ def _number_field(r: _Reader, section: str, table: dict[str, Any], kind: str,
     lo, hi = r.number(section, table, "min", None), r.number(section, table, "max", None)
     if lo is not None and hi is not None and lo >= hi:
         raise r.fail(f"[{section}] min = {lo}, max = {hi}", "min must be below max")
-    return NumberField(address=_address(r, section, table, "address", base), type=value_type,
+    return NumberField(address=map_address(r, section, table, "address", base), type=value_type,
                        word_order=order, unit=unit, to_si=_UNIT_SCALE[kind][unit], scale=scale,
                        offset=r.number(section, table, "offset", 0.0), decimals=decimals,
                        decimals_address=decimals_address, min=lo, max=hi)
 
 
-def _status_field(r: _Reader, table: dict[str, Any], base: int) -> StatusField:
+def _status_field(r: MapReader, table: dict[str, Any], base: int) -> StatusField:
     names = ("stable_bit", "overload_bit", "error_bit", "lag_bit")
     r.check_keys("status", table, {"address", *names})
     bits = {k: r.integer("status", table, k, 0, 15) for k in names}
     used = [b for b in bits.values() if b is not None]
     if len(used) != len(set(used)):
         raise r.fail("[status]", f"two meanings share one bit: {bits}")
-    return StatusField(address=_address(r, "status", table, "address", base), **bits)
+    return StatusField(address=map_address(r, "status", table, "address", base), **bits)
 
 
-def _command_field(r: _Reader, section: str, table: dict[str, Any], base: int) -> CommandField:
+def _command_field(r: MapReader, section: str, table: dict[str, Any], base: int) -> CommandField:
     r.check_keys(section, table, {"address", "value"})
-    return CommandField(address=_address(r, section, table, "address", base),
+    return CommandField(address=map_address(r, section, table, "address", base),
                         value=r.integer(section, table, "value", 0, 65535, required=True))
 
 
-def _session_field(r: _Reader, table: dict[str, Any], base: int) -> SessionField:
+def _session_field(r: MapReader, table: dict[str, Any], base: int) -> SessionField:
     r.check_keys("session", table, {"address", "uptime_address"})
-    return SessionField(address=_address(r, "session", table, "address", base),
-                        uptime_address=_address(r, "session", table, "uptime_address", base))
+    return SessionField(address=map_address(r, "session", table, "address", base),
+                        uptime_address=map_address(r, "session", table, "uptime_address", base))
 
 
-def _watchdog_field(r: _Reader, table: dict[str, Any], base: int) -> WatchdogField:
+def _watchdog_field(r: MapReader, table: dict[str, Any], base: int) -> WatchdogField:
     r.check_keys("watchdog", table, {"address", "timeout_ms"})
-    return WatchdogField(address=_address(r, "watchdog", table, "address", base),
+    return WatchdogField(address=map_address(r, "watchdog", table, "address", base),
                          timeout_ms=r.integer("watchdog", table, "timeout_ms", 1, 65535,
                                               required=True))
 
 
-def _check_overlaps(r: _Reader, spaces: dict[str, list[tuple[str, int, int]]]) -> None:
+def _check_overlaps(r: MapReader, spaces: dict[str, list[tuple[str, int, int]]],
+                    timed: TimedTables, read_space: str) -> None:
+    for space, name, address, count, _writable in timed.spans(read_space):
+        spaces[space].append((name, address, count))
     for space, fields in spaces.items():
         fields.sort(key=lambda f: f[1])
         for (name_a, start_a, n_a), (name_b, start_b, _) in zip(fields, fields[1:]):
@@ -314,9 +255,15 @@ def _layout(read_function: Function, readable: dict[str, Any],
     return spaces
 
 
+def _check_logged(r: MapReader, field: NumberField, timed: TimedTables) -> None:
+    if timed.log is not None and field.decimals_address is not None:
+        raise r.fail("[log]", "a logged field needs fixed decimals (or float32), not a "
+                              "decimals_address")
+
+
 def parse_map(doc: dict[str, Any], name: str, source: str) -> LoadCellMap | ServoMap:
     """Validate a parsed TOML document; HILConfigError names source, key and valid values."""
-    r = _Reader(source)
+    r = MapReader(source)
     device = r.table(doc, "device", required=True)
     r.check_keys("device", device, {"kind", "function", "address_base", "description"})
     kind = r.choice("device", device, "kind", list(_SECTIONS))
@@ -328,14 +275,17 @@ def parse_map(doc: dict[str, Any], name: str, source: str) -> LoadCellMap | Serv
     status_field = None if status is None else _status_field(r, status, base)
     session = r.table(doc, "session", required=False)
     session_field = None if session is None else _session_field(r, session, base)
+    timed = parse_timed(r, doc, kind, base)
     if kind == "loadcell":
         value = _number_field(r, "value", r.table(doc, "value", True), kind, base)
         tare = r.table(doc, "tare", required=False)
         tare_field = None if tare is None else _command_field(r, "tare", tare, base)
         _check_overlaps(r, _layout(function, {"value": value, "status": status_field,
-                                              "session": session_field}, {"tare": tare_field}))
+                                              "session": session_field}, {"tare": tare_field}),
+                        timed, function.value)
+        _check_logged(r, value, timed)
         return LoadCellMap(name, source, description, function, value, status_field, tare_field,
-                           session_field)
+                           session_field, timed)
     setpoint = _number_field(r, "setpoint", r.table(doc, "setpoint", True), kind, base)
     if setpoint.decimals_address is not None:
         # A write-only field cannot follow a decimals register without an extra read per step.
@@ -350,9 +300,13 @@ def parse_map(doc: dict[str, Any], name: str, source: str) -> LoadCellMap | Serv
     _check_overlaps(r, _layout(function, {"position": position_field, "status": status_field,
                                           "session": session_field},
                                {"setpoint": setpoint, "enable": enable_field,
-                                "watchdog": watchdog_field}))
+                                "watchdog": watchdog_field}), timed, function.value)
+    if timed.log is not None and position_field is None:
+        raise r.fail("[log]", "a servo logs its [position]: add one, or drop [log]")
+    if position_field is not None:
+        _check_logged(r, position_field, timed)
     return ServoMap(name, source, description, function, setpoint, position_field, status_field,
-                    enable_field, session_field, watchdog_field)
+                    enable_field, session_field, watchdog_field, timed)
 
 
 def _maps_dir() -> Traversable:

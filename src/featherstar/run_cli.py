@@ -69,6 +69,8 @@ def _run_and_report(args: argparse.Namespace, scene, overrides, outputs, stop) -
     from .cosim.swimmer.report import summary_table, write_outputs
     from .cosim.swimmer.run import run_scene
 
+    if args.hardware:   # streamed, or device-timed when the URLs say clock=device
+        from .hil.timed_run import run_bench_scene as run_scene
     try:
         result = run_scene(scene, overrides, outputs=outputs, progress=not args.quiet,
                            strict_window=True)

@@ -41,8 +41,8 @@ def test_parameters_from_a_file_and_the_command_line(tmp_path):
 
 
 @pytest.mark.parametrize("make, message", [
-    (lambda: flat_plate_plant({"drag": 1.0}), "has no parameter(s) drag"),
-    (lambda: flat_plate_plant({"c_n": -1.0}), "c_n = -1.0 must be >= 0"),
+    (lambda: flat_plate_plant({"drag": 1.0}), "has no parameter(s) 'drag'"),
+    (lambda: flat_plate_plant({"c_n": -1.0}), "'c_n' = -1.0 must be >= 0"),
     (lambda: read_plant_parameters(None, ["c_n=fast"]), "must be a finite number"),
     (lambda: read_plant_parameters(None, ["c_n"]), "must read NAME=VALUE"),
     (lambda: fmu_plant_parameters({"robot.mass_kg": 1.0}), "blocks 'feather' and 'servo'"),

@@ -1,0 +1,103 @@
+"""Valid-period share and TR of `featherstar run testbed --hardware ...` against the emulator,
+streamed (clock=pc) and device-timed (clock=device), quiet and with busy processes competing
+for the cores (`python -c "while True: pass"` x --busy).
+
+    python bench/bench_timed_load.py --plant fmu --repeats 2 --out docs/results/timed_vs_streaming_load.json
+
+Each run is a fresh `featherstar run` process (4 stroke periods, 3 measured) against one
+emulator process, SETTLE_S after the previous one (a bench waits for the feather to come to rest
+before it tares); the busy processes start before the run and are killed after it. TR error is
+against the mean quiet run of the same mode.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from featherstar.hil.emulator import spawn_emulator
+
+BUSY = [sys.executable, "-c", "while True: pass"]
+
+
+SETTLE_S = 10.0   # the feather rings for seconds after a run; a tare taken then is wrong
+
+
+def one_run(emulator, clock: str, busy: int, periods: int) -> dict:
+    time.sleep(SETTLE_S)
+    hogs = [subprocess.Popen(BUSY) for _ in range(busy)]
+    try:
+        time.sleep(0.5 if busy else 0.0)
+        with tempfile.TemporaryDirectory() as out:
+            run = subprocess.run(
+                [sys.executable, "-m", "featherstar", "run", "testbed", "--quiet", "--no-figure",
+                 "--out", out,
+                 "--hardware", f"servo={emulator.servo_url}&clock={clock}",
+                 "--hardware", f"loadcell={emulator.loadcell_url}&clock={clock}",
+                 "--set", f"master.periods={periods}", "--set", "metrics.settle_periods=1"],
+                capture_output=True, text=True, timeout=300)
+            summary_path = Path(out) / "summary.json"
+            summary = json.loads(summary_path.read_text()) if summary_path.exists() else {}
+    finally:
+        for hog in hogs:
+            hog.kill()
+            hog.wait()
+    validity = summary.get("validity") or {}
+    used = summary.get("periods_used") or 0
+    return {"clock": clock, "busy_processes": busy, "exit": run.returncode,
+            "complete": summary.get("complete"), "periods_used": used,
+            "valid_periods": validity.get("valid_periods"),
+            "valid_share": (validity.get("valid_periods") or 0) / used if used else 0.0,
+            "thrust_ratio": summary.get("thrust_ratio"),
+            "mean_thrust_N": summary.get("mean_thrust_N"),
+            "deadline_misses": summary.get("deadline_misses"),
+            "lags": summary.get("lags"), "gaps": summary.get("gaps"),
+            "error": (run.stderr.strip().splitlines() or [""])[-1] if run.returncode else ""}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--plant", choices=("fmu", "flat-plate"), default="fmu")
+    parser.add_argument("--busy", type=int, default=2)
+    parser.add_argument("--repeats", type=int, default=2)
+    parser.add_argument("--periods", type=int, default=4)
+    parser.add_argument("--out", type=Path)
+    args = parser.parse_args()
+    runs = []
+    with spawn_emulator(plant=args.plant, seed=1, start_timeout_s=600) as emulator:
+        for _ in range(args.repeats):
+            for clock in ("pc", "device"):
+                for busy in (0, args.busy):
+                    runs.append(one_run(emulator, clock, busy, args.periods))
+                    print(json.dumps(runs[-1]), flush=True)
+    table = {}
+    for clock in ("pc", "device"):
+        quiet = [r["thrust_ratio"] for r in runs if r["clock"] == clock and not r["busy_processes"]
+                 and r["thrust_ratio"] is not None]
+        tr_quiet = sum(quiet) / len(quiet) if quiet else None
+        for busy in (0, args.busy):
+            rs = [r for r in runs if r["clock"] == clock and r["busy_processes"] == busy]
+            errors = [abs(r["thrust_ratio"] / tr_quiet - 1) for r in rs
+                      if tr_quiet and r["thrust_ratio"] is not None]
+            table[f"{clock}, {busy} busy"] = {
+                "runs": len(rs), "complete": sum(bool(r["complete"]) for r in rs),
+                "valid_share_min": min(r["valid_share"] for r in rs),
+                "valid_share_mean": sum(r["valid_share"] for r in rs) / len(rs),
+                "tr_error_vs_quiet_max": max(errors) if errors else None}
+    result = {"command": " ".join(["python", *sys.argv]), "plant": args.plant,
+              "cpus": os.cpu_count(), "machine": platform.machine(),
+              "note": "the machine is shared: other processes add to the busy ones",
+              "summary": table, "runs": runs}
+    print(json.dumps(table, indent=2))
+    if args.out:
+        args.out.write_text(json.dumps(result, indent=2) + "\n")
+
+
+if __name__ == "__main__":
+    main()
