@@ -34,7 +34,7 @@ from .evaluation import ITERATION_STREAM, Evaluation, MeasurementPlan, evaluate
 from .executor import Executor, InlineExecutor
 from .log import ExperimentLog
 from .resume import Entries, check_log
-from .objective import Objective
+from .objective import Objective, preflight
 from .space import SearchSpace
 
 # MATLAB bayesopt's NumSeedPoints default: random points before the GP takes over.
@@ -261,6 +261,9 @@ def optimize(
         # Only batched logs name their batch size: sequential logs written before batches existed resume.
         **({"batch_size": batch_size} if batch_size > 1 else {}),
     }
+    # The first random point's run, planned and not simulated: a setup that cannot work stops here.
+    preflight(objective, space.overrides(space.point(space.sample(np.random.default_rng([plan.seed, 0]), 1)[0])),
+              plan.run_length_s(space.period_s))
     log = ExperimentLog.open(log_path, header, resume=resume)
     check_log(log, study_entries(space, iterations))
     optimizer = StrokeOptimizer(

@@ -20,7 +20,7 @@ from .errors import OptimizerError
 from .evaluation import ITERATION_STREAM, MeasurementPlan, evaluate
 from .executor import Executor, InlineExecutor
 from .log import dumps
-from .objective import Objective, Overrides, Trace, WithOverrides
+from .objective import Objective, Overrides, Trace, WithOverrides, preflight
 from .space import ServoLimits, Variable, stroke_overrides, stroke_space, symmetric_stroke
 from .study import run_study
 from .sweep import L_ROOT_M, W_SPINE_M, Geometry
@@ -42,13 +42,19 @@ class MorphologyObjective:
     objective: Objective
     family: str
 
-    def __call__(self, overrides: Overrides, duration_s: float) -> Trace:
+    def _complete(self, overrides: Overrides) -> dict:
         ratio = float(overrides[MORPHOLOGY_VARIABLES[self.family].name])
         if self.family == "chordwise":
             geometry = Geometry("chordwise", ratio * W_SPINE_M, 0.120)
         else:
             geometry = Geometry("spanwise", 0.120, ratio * L_ROOT_M)
-        return self.objective({**overrides, **geometry.overrides()}, duration_s)
+        return {**overrides, **geometry.overrides()}
+
+    def check(self, overrides: Overrides, duration_s: float) -> None:
+        preflight(self.objective, self._complete(overrides), duration_s)
+
+    def __call__(self, overrides: Overrides, duration_s: float) -> Trace:
+        return self.objective(self._complete(overrides), duration_s)
 
 
 def codesign(

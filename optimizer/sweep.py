@@ -35,7 +35,7 @@ from .evaluation import SWEEP_STREAM, MeasurementPlan, evaluate
 from .executor import Executor, ProcessExecutor, Progress
 from .log import ExperimentLog
 from .resume import Entries, check_log
-from .objective import Objective
+from .objective import Objective, preflight
 from .space import stroke_overrides
 
 W_SPINE_M = 0.010
@@ -159,6 +159,10 @@ def run_sweep(
     so a log is never resumed with another setup.
     """
     tasks = sweep_tasks(families, controllers)
+    if not tasks:
+        raise OptimizerError("the sweep plans no runs (no families or no controllers)")
+    first = tasks[0].controller.stroke(amplitude_deg)
+    preflight(objective, {**tasks[0].geometry.overrides(), **stroke_overrides(first)}, plan.run_length_s(first.period_s))
     started = time.perf_counter()
     log = None if log_path is None else ExperimentLog.open(
         log_path, _header(families, controllers, plan, amplitude_deg, context), resume=resume)

@@ -13,6 +13,7 @@ from pathlib import Path
 
 from ..errors import OptimizerError
 from ..log import dumps
+from ..options import number, one_line_errors, out_dir
 from .fit import BIN_S, DEFAULT_COEFFICIENTS, Calibration, calibrate, feather_block
 from .recordings import read_recording
 
@@ -37,6 +38,7 @@ def register_calibrate(subparsers: argparse._SubParsersAction, override_type) ->
                     "directories, or CSVs with time, root angle and thrust columns. The runs must repeat one stroke, "
                     "from rest. The simulated feather's root follows the recorded angle; the fit matches the thrust "
                     f"averaged over {BIN_S * 1e3:g} ms bins over the first window (docs/bench-loop.md says why).")
+    one_line_errors(cal)
     cal.add_argument("runs", nargs="+", type=Path, metavar="RUN", help="run directory or CSV (repeatable)")
     cal.add_argument("--scene", default="testbed", help="scene whose feather block is calibrated (default testbed)")
     cal.add_argument("--set", dest="overrides", metavar="KEY=VALUE", type=override_type, action="extend", nargs="+",
@@ -45,12 +47,12 @@ def register_calibrate(subparsers: argparse._SubParsersAction, override_type) ->
     cal.add_argument("--fit", type=_fit, action="append", default=[], metavar="NAME[=LOW,HIGH]",
                      help=f"coefficient to fit, within its physical range or a narrower one (default: "
                           f"{', '.join(DEFAULT_COEFFICIENTS)}, those the feather has)")
-    cal.add_argument("--window-s", type=float, default=None, metavar="S",
+    cal.add_argument("--window-s", type=number(above=0.0), default=None, metavar="S",
                      help="fit the first S seconds of each run (default: one stroke period, from summary.json)")
     cal.add_argument("--time-column", default=None)
     cal.add_argument("--angle-column", default=None)
     cal.add_argument("--thrust-column", default=None)
-    cal.add_argument("--out", type=Path, default=Path("runs/calibration"), help="output directory")
+    cal.add_argument("--out", type=out_dir, default="runs/calibration", help="output directory")
     cal.set_defaults(func=_calibrate_command)
 
 
