@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
 from ..errors import OptimizerError
@@ -68,6 +69,11 @@ def _calibrate_command(args: argparse.Namespace) -> int:
     result = calibrate(recordings, args.scene, overrides, fit, window_s=args.window_s)
     paths = write_calibration(result, args.out, runs=[r.source for r in recordings], scene=args.scene,
                               overrides=overrides)
+    try:   # the figure is optional post-processing: the calibration is already on disk
+        _fit_figure(result, [r.source for r in recordings], args.out / "fit.png")
+        paths.append(args.out / "fit.png")
+    except Exception as exc:  # noqa: BLE001 — any plotting failure is a warning, never a lost fit
+        print(f"featherstar calibrate: warning: fit.png not drawn ({type(exc).__name__}: {exc})", file=sys.stderr)
     for c in result.coefficients:
         print(f"  {c.name:28s} {result.values[c.name]:.4g} ± {result.sd[c.name]:.2g} {c.unit}  "
               f"(range {c.low:g}..{c.high:g}, start {c.start:g})")
@@ -85,9 +91,10 @@ def set_arguments(result: Calibration) -> str:
 
 
 def write_calibration(result: Calibration, out: Path, *, runs: list[str], scene: str, overrides: dict) -> list[Path]:
+    """calibration.json, set.txt and feather-parameters.toml (the figure is drawn separately)."""
     out.mkdir(parents=True, exist_ok=True)
     report = {**result.as_dict(), "scene": scene, "overrides": overrides, "runs": runs, "window_s": result.window_s}
-    paths = [out / "calibration.json", out / "set.txt", out / "feather-parameters.toml", out / "fit.png"]
+    paths = [out / "calibration.json", out / "set.txt", out / "feather-parameters.toml"]
     paths[0].write_text(json.dumps(json.loads(dumps(report)), indent=2) + "\n")
     paths[1].write_text(set_arguments(result) + "\n")
     # The scene's own feather parameters, the feather.* overrides, then the calibrated ones.
@@ -99,7 +106,6 @@ def write_calibration(result: Calibration, out: Path, *, runs: list[str], scene:
     paths[2].write_text(f"# calibrated feather of scene '{scene}' ({', '.join(Path(r).name for r in runs)}):\n"
                         "# replace the parameters line of the scene's [blocks.feather] table with\n"
                         f"parameters = {{ {inline} }}\n")
-    _fit_figure(result, runs, paths[3])
     return paths
 
 

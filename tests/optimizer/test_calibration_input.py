@@ -157,3 +157,45 @@ def test_calibration_recovers_coefficients_from_simulated_recordings(tmp_path):
     feather = load_scene(tmp_path / "calibrated.toml").to_dict()["blocks"]["feather"]["parameters"]
     assert feather["drag_coeff"] == pytest.approx(calibration.values["drag_coeff"], rel=1e-5)
     assert feather["oscillatory_drag"] == 0
+
+
+def test_one_absurd_sample_is_refused_and_nothing_is_written(tmp_path, capsys):
+    run = _write_run(tmp_path / "run.csv")
+    lines = run.read_text().splitlines()
+    t, angle, _ = lines[40].split(",")
+    lines[40] = f"{t},{angle},1e300"   # one corrupt load-cell sample
+    run.write_text("\n".join(lines) + "\n")
+    out = tmp_path / "cal"
+    err = _one_line_error(capsys, ["calibrate", str(run), "--window-s", "1", "--out", str(out),
+                                   "--set", "feather.morphology=plain"])
+    assert "1e+300 N" in err and "cannot be fitted" in err
+    assert not out.exists()
+
+
+def test_a_fit_that_is_not_finite_or_did_not_converge_is_no_calibration():
+    from dataclasses import replace
+
+    from featherstar.optimizer.calibration.fit import Calibration, Coefficient
+
+    good = Calibration((Coefficient("drag_coeff", 0.1, 10.0, 1.0, "1"),), {"drag_coeff": 1.5}, {"drag_coeff": 0.01},
+                       [[1.0]], {}, 0.002, 0.99, {}, 1.0, 20, 1.0, np.zeros(1), np.zeros((1, 1)), np.zeros((1, 1)))
+    assert good.failure() is None
+    assert "rms residual inf" in replace(good, rms_residual_N=math.inf).failure()
+    assert "R² nan" in replace(good, r_squared=math.nan).failure()
+    assert "drag_coeff sd inf" in replace(good, sd={"drag_coeff": math.inf}).failure()
+    assert "did not converge" in replace(good, converged=False, solver_message="max_nfev").failure()
+
+
+@pytest.mark.parametrize("content", [b"time,angle,thrust\n0,\xff\xfe,1\n", b"\xff\xfetime,angle\n", b"t,a\x00,f\n1,2,3\n"])
+def test_a_recording_that_is_not_utf8_text_is_one_line(tmp_path, capsys, content):
+    run = tmp_path / "run.csv"
+    run.write_bytes(content)
+    err = _one_line_error(capsys, ["calibrate", str(run), "--window-s", "1", "--out", str(tmp_path / "cal")])
+    assert str(run) in err
+
+
+def test_a_damaged_summary_beside_a_recording_is_one_line(tmp_path, capsys):
+    run = _write_run(tmp_path / "run.csv")
+    (tmp_path / "summary.json").write_bytes(b"\xff{")
+    err = _one_line_error(capsys, ["calibrate", str(run), "--out", str(tmp_path / "cal")])
+    assert "summary.json" in err
