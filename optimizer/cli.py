@@ -24,9 +24,10 @@ from .executor import Executor, make_executor
 from .figures import sweep_figure
 from .loadcell import DEFAULT_NOISE_SD_N, LoadCell
 from .objective import Objective, SceneObjective, WithOverrides
-from .options import count, number, one_line_errors, out_dir
+from .options import command, count, number, one_line_errors, out_dir
 from .space import STROKE_VARIABLES, ServoLimits, stroke_space
-from .study import run_study
+from .postprocess import optional
+from .study import SUMMARY_KEYS, run_study
 from .sweep import FAMILIES, format_table, run_sweep, write_csv
 from .synthetic import SyntheticFeather
 
@@ -124,7 +125,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                      help="other optimize output directories to draw in the same Fig. 8")
     _where(opt, batches=True)
     add_bench_options(opt)
-    opt.set_defaults(func=_optimize_command)
+    opt.set_defaults(func=command("featherstar optimize", _optimize_command))
 
     sweep = one_line_errors(subparsers.add_parser("sweep", help="morphology × controller grid sweep (paper Fig. 3)"))
     _common(sweep, default_noise_N=0.0)
@@ -135,7 +136,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     sweep.add_argument("--no-progress", action="store_true")
     sweep.add_argument("--out", type=out_dir, default="runs/sweep", help="output directory (runs.jsonl: every run)")
     sweep.add_argument("--resume", action="store_true", help="continue the sweep logged in --out: only missing runs")
-    sweep.set_defaults(func=_sweep_command)
+    sweep.set_defaults(func=command("featherstar sweep", _sweep_command))
 
     co = one_line_errors(subparsers.add_parser("codesign", help="joint morphology + stroke search vs the two-stage approach"))
     _common(co, default_noise_N=DEFAULT_NOISE_SD_N)
@@ -145,7 +146,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     co.add_argument("--out", type=out_dir, default="runs/codesign")
     co.add_argument("--resume", action="store_true")
     _where(co, batches=True)
-    co.set_defaults(func=_codesign_command)
+    co.set_defaults(func=command("featherstar codesign", _codesign_command))
 
     register_calibrate(subparsers, _override)
 
@@ -175,7 +176,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     paper.add_argument("--out", type=out_dir, default="runs/paper", metavar="DIR", help="output directory (default runs/paper)")
     _where(paper, batches=False)
     paper.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
-    paper.set_defaults(func=_paper_command)
+    paper.set_defaults(func=command("featherstar paper", _paper_command))
 
 
 def _plan(args: argparse.Namespace, **kwargs: int) -> MeasurementPlan:
@@ -225,8 +226,7 @@ def _summary(directory: Path) -> dict:
         raise OptimizerError(f"--compare {directory}: no summary.json there") from None
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise OptimizerError(f"--compare {directory}: summary.json is unreadable ({exc})") from None
-    missing = [k for k in ("objective", "thrust_ratio", "baseline_thrust_ratio") if not isinstance(summary, dict)
-               or k not in summary]
+    missing = [k for k in SUMMARY_KEYS if not isinstance(summary, dict) or k not in summary]
     if missing:
         raise OptimizerError(f"--compare {directory}: summary.json is not a study's summary (no {missing[0]!r})")
     return summary
@@ -258,11 +258,12 @@ def _sweep_command(args: argparse.Namespace) -> int:
         return _interrupted(args.out)
     write_csv(result.runs, args.out / "runs.csv")
     write_csv(result.table, args.out / "table.csv")
-    sweep_figure(result.table, ["thrust_ratio", "normalized_thrust"], args.out / "fig3_sweep.png")
     timing = {"wall_s": result.wall_s, "simulation_s": result.simulation_s, "workers": result.workers,
               "runs": len(result.runs), "resumed_runs": result.resumed_runs,
               "failed_runs": sum(1 for r in result.runs if r["error"])}
     (args.out / "summary.json").write_text(json.dumps(timing, indent=2) + "\n")
+    optional("fig3_sweep.png", sweep_figure, result.table, ["thrust_ratio", "normalized_thrust"],
+             args.out / "fig3_sweep.png")
     print(format_table(result.table))
     print(f"{len(result.runs)} runs in {result.wall_s:.1f} s; wrote {args.out}/runs.csv, table.csv, fig3_sweep.png")
     return 0

@@ -3,15 +3,19 @@
 `optimize`, `sweep`, `codesign`, `calibrate` and `paper` share these argparse types, so a bad
 value (a negative seed, `--periods 0`, an infinite `--rest-s`, an `--out` that cannot be
 written) is refused before anything is imported, loaded or run, and `one_line_errors` makes
-argparse say it the way every other refusal is said: one line, exit status 2.
+argparse say it the way every other refusal is said: one line, exit status 2. `command` wraps a
+subcommand so the warnings it raises (a log repaired on resume, a figure not drawn) are one line
+each on stderr too.
 """
 from __future__ import annotations
 
 import argparse
+import functools
 import math
 import os
 import sys
 import tempfile
+import warnings
 from pathlib import Path
 from typing import Callable, NoReturn
 
@@ -75,3 +79,16 @@ def one_line_errors(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
 
     parser.error = error  # type: ignore[method-assign]
     return parser
+
+
+def command(prog: str, fn: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Namespace], int]:
+    """fn, with every warning it raises printed as one `PROG: warning: ...` line on stderr."""
+    @functools.wraps(fn)
+    def run(args: argparse.Namespace) -> int:
+        def show(message, category, filename, lineno, file=None, line=None) -> None:
+            print(f"{prog}: warning: {' '.join(str(message).split())}", file=sys.stderr)
+
+        with warnings.catch_warnings():
+            warnings.showwarning = show
+            return fn(args)
+    return run

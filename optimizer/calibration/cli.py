@@ -9,12 +9,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 
 from ..errors import OptimizerError
 from ..log import dumps
-from ..options import number, one_line_errors, out_dir
+from ..options import command, number, one_line_errors, out_dir
+from ..postprocess import optional
 from .fit import BIN_S, DEFAULT_COEFFICIENTS, Calibration, calibrate, feather_block
 from .recordings import read_recording
 
@@ -54,7 +54,7 @@ def register_calibrate(subparsers: argparse._SubParsersAction, override_type) ->
     cal.add_argument("--angle-column", default=None)
     cal.add_argument("--thrust-column", default=None)
     cal.add_argument("--out", type=out_dir, default="runs/calibration", help="output directory")
-    cal.set_defaults(func=_calibrate_command)
+    cal.set_defaults(func=command("featherstar calibrate", _calibrate_command))
 
 
 def _calibrate_command(args: argparse.Namespace) -> int:
@@ -69,11 +69,9 @@ def _calibrate_command(args: argparse.Namespace) -> int:
     result = calibrate(recordings, args.scene, overrides, fit, window_s=args.window_s)
     paths = write_calibration(result, args.out, runs=[r.source for r in recordings], scene=args.scene,
                               overrides=overrides)
-    try:   # the figure is optional post-processing: the calibration is already on disk
-        _fit_figure(result, [r.source for r in recordings], args.out / "fit.png")
+    # The figure is optional post-processing: the calibration is already on disk.
+    if optional("fit.png", _fit_figure, result, [r.source for r in recordings], args.out / "fit.png") is not None:
         paths.append(args.out / "fit.png")
-    except Exception as exc:  # noqa: BLE001 — any plotting failure is a warning, never a lost fit
-        print(f"featherstar calibrate: warning: fit.png not drawn ({type(exc).__name__}: {exc})", file=sys.stderr)
     for c in result.coefficients:
         print(f"  {c.name:28s} {result.values[c.name]:.4g} ± {result.sd[c.name]:.2g} {c.unit}  "
               f"(range {c.low:g}..{c.high:g}, start {c.start:g})")
@@ -109,7 +107,7 @@ def write_calibration(result: Calibration, out: Path, *, runs: list[str], scene:
     return paths
 
 
-def _fit_figure(result: Calibration, runs: list[str], path: Path) -> None:
+def _fit_figure(result: Calibration, runs: list[str], path: Path) -> Path:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -126,3 +124,4 @@ def _fit_figure(result: Calibration, runs: list[str], path: Path) -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
+    return path

@@ -31,6 +31,7 @@ from ..evaluation import VALIDATION_STREAM, MeasurementPlan, noise_rng
 from ..executor import Executor, Progress, make_executor
 from ..loadcell import LoadCell, measure
 from ..objective import SceneObjective
+from ..postprocess import optional
 from ..space import stroke_overrides, stroke_space, symmetric_stroke
 from ..study import summarize
 from ..sweep import Task, run_task, tabulate
@@ -271,12 +272,22 @@ def generate_report(
     started = time.time()
     results, timing = run_experiments(res, out_dir, progress=progress, executor=executor)
     data = collect(results)
-    figures = draw_all(data, res, out_dir)
     timing["total_wall_s"] = time.time() - started
-    table = claims(data)
-    payload = {"resolution": res.describe(), "timing": timing, "started_unix": started, "claims": table,
-               "figures": {k: p.name for k, p in figures.items()}, **data}
-    for study in payload["studies"].values():
-        study.get("summary", {}).pop("validation", None)  # per-set details: kept short
-    (out_dir / "paper.json").write_text(json.dumps(json_safe(payload, drop_arrays=True), indent=1, allow_nan=False) + "\n")
+    payload = {"resolution": res.describe(), "timing": timing, "started_unix": started, "claims": [],
+               "figures": {}, **data}
+    # The results first: the claims, figures and markdown after them are post-processing, whose
+    # failure is a warning and costs none of the hours of experiments in paper.json.
+    _write_payload(out_dir, payload)
+    table = optional("the claims table", claims, data) or []
+    figures = optional("the figures", draw_all, data, res, out_dir) or {}
+    payload.update(claims=table, figures={k: p.name for k, p in figures.items()})
+    _write_payload(out_dir, payload)
     return write_markdown(out_dir / "report.md", data, table, figures, res, timing)
+
+
+def _write_payload(out_dir: Path, payload: dict) -> None:
+    """paper.json: every number of the report (per-set validation details left out: kept short)."""
+    short = {**payload, "studies": {key: {**study, "summary": {k: v for k, v in study["summary"].items()
+                                                               if k != "validation"}} if "summary" in study else study
+                                    for key, study in payload["studies"].items()}}
+    (out_dir / "paper.json").write_text(json.dumps(json_safe(short, drop_arrays=True), indent=1, allow_nan=False) + "\n")
