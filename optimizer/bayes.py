@@ -354,11 +354,11 @@ def check_in_order(log: ExperimentLog) -> None:
     for record, line in zip(log.records, log.lines):
         if record["kind"] == "evaluation":
             if record["index"] != evaluated:
-                raise OptimizerError(f"cannot resume {log.path}: line {line} is evaluation {record['index']} where "
+                raise OptimizerError(f"{log.path}: line {line} is evaluation {record['index']} where "
                                      f"evaluation {evaluated} comes next; a line was lost or moved (the log is damaged)")
             evaluated += 1
         elif record["kind"] == "estimate" and record["index"] >= evaluated:
-            raise OptimizerError(f"cannot resume {log.path}: line {line} is the estimate after evaluation "
+            raise OptimizerError(f"{log.path}: line {line} is the estimate after evaluation "
                                  f"{record['index']}, which the log lacks before it; a line was lost (the log is damaged)")
 
 

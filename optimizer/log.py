@@ -88,28 +88,39 @@ class ExperimentLog:
                 f"{path} already holds a run: add --resume to continue it (resume=True from Python), or choose "
                 "another --out"
             )
-        numbered = read_records(path)
-        stored = numbered[0][1] if numbered else None
-        old_format = isinstance(stored, dict) and stored.get("format") == 1
-        if isinstance(stored, dict) and stored.get("format") not in (1, FORMAT_VERSION):
-            raise OptimizerError(f"cannot resume {path}: log format {stored.get('format')!r}, this version reads "
-                                 f"formats 1 and {FORMAT_VERSION}")
-        if stored is None or {**stored, "format": FORMAT_VERSION} != wanted:
+        try:
+            stored, log = cls.read(path)
+        except OptimizerError as exc:
+            raise OptimizerError(f"cannot resume: {exc}") from None
+        if {**stored, "format": FORMAT_VERSION} != wanted:
             raise OptimizerError(
                 f"cannot resume {path}: it was written for a different setup ({_header_difference(stored, wanted)})"
             )
+        return log
+
+    @classmethod
+    def read(cls, path: str | os.PathLike) -> tuple[dict, "ExperimentLog"]:
+        """(header, log) of an existing log, every record checked against its digest (format 2)."""
+        path = Path(path)
+        numbered = read_records(path)
+        stored = numbered[0][1] if numbered else {}
+        if stored.get("kind") != "header":
+            raise OptimizerError(f"{path}: its first line is not a log header")
+        if stored.get("format") not in (1, FORMAT_VERSION):
+            raise OptimizerError(f"{path}: log format {stored.get('format')!r}, this version reads "
+                                 f"formats 1 and {FORMAT_VERSION}")
+        old_format = stored["format"] == 1
         records, lines = [], []
         for number, record in numbered[1:]:
             if record.get("kind") == "header":
-                raise OptimizerError(f"cannot resume {path}: line {number} is a second header; two runs were "
+                raise OptimizerError(f"{path}: line {number} is a second header; two runs were "
                                      "mixed in one log")
-            if not old_format:
-                if record.get(DIGEST_KEY) != digest(record):
-                    raise OptimizerError(f"cannot resume {path}: line {number} does not match its digest; the "
-                                         "record was edited or damaged (restore it, or choose another --out)")
+            if not old_format and record.get(DIGEST_KEY) != digest(record):
+                raise OptimizerError(f"{path}: line {number} does not match its digest; the "
+                                     "record was edited or damaged (restore it, or choose another --out)")
             records.append({k: v for k, v in record.items() if k != DIGEST_KEY})
             lines.append(number)
-        return cls(path, records, lines, format=1 if old_format else FORMAT_VERSION)
+        return stored, cls(path, records, lines, format=1 if old_format else FORMAT_VERSION)
 
     def append(self, record: dict) -> None:
         self.records.append(record)
@@ -154,22 +165,18 @@ def read_records(path: Path) -> list[tuple[int, dict]]:
         try:
             record = json.loads(line.decode("utf-8"))
         except UnicodeDecodeError as exc:
-            raise OptimizerError(f"cannot resume {path}: line {number} is not UTF-8 text (byte {exc.start}); "
+            raise OptimizerError(f"{path}: line {number} is not UTF-8 text (byte {exc.start}); "
                                  "the log is damaged") from None
         except json.JSONDecodeError as exc:
-            raise OptimizerError(f"cannot resume {path}: line {number} is not valid JSON ({exc.msg}, column "
+            raise OptimizerError(f"{path}: line {number} is not valid JSON ({exc.msg}, column "
                                  f"{exc.colno}); the log is damaged") from None
         if not isinstance(record, dict) or not isinstance(record.get("kind"), str):
-            raise OptimizerError(f"cannot resume {path}: line {number} is not a log record (a JSON object with "
+            raise OptimizerError(f"{path}: line {number} is not a log record (a JSON object with "
                                  "a kind); the log is damaged")
         records.append((number, record))
     return records
 
 
-def _header_difference(stored: dict | None, wanted: dict) -> str:
-    if stored is None:
-        return "no header"
-    if stored.get("kind") != "header":
-        return "its first line is not a header"
+def _header_difference(stored: dict, wanted: dict) -> str:
     keys = sorted(k for k in set(stored) | set(wanted) if k != "format" and stored.get(k) != wanted.get(k))
     return "; ".join(f"{k}: log has {stored.get(k)!r}, now {wanted.get(k)!r}" for k in keys)

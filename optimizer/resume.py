@@ -64,7 +64,7 @@ def check_log(log: ExperimentLog, entries: Sequence[Entries]) -> None:
     by_kind = {e.kind: e for e in entries}
     seen: dict[tuple[str, Hashable], int] = {}
     for record, line in zip(log.records, log.lines):
-        where = f"cannot resume {log.path}: line {line}"
+        where = f"{log.path}: line {line}"
         spec = by_kind.get(record["kind"])
         if spec is None:
             raise OptimizerError(f"{where}: a record of kind {record['kind']!r}, which this command never writes "

@@ -119,6 +119,21 @@ def test_a_prior_of_the_same_feather_gives_its_best_strokes_first(tmp_path):
         SimPrior.load(tmp_path / "sim", feather={"morphology": "chordwise"}, space=stroke_space(3.0), maximize=True)
 
 
+@pytest.mark.parametrize("damage, message", [
+    (lambda lines: lines + [b"\xff\xfe{}"], "not UTF-8"),
+    (lambda lines: lines + [lines[1]], "repeats the evaluation index 0"),
+    (lambda lines: lines + [b"[1, 2]"], "not a log record"),
+    (lambda lines: [lines[0], lines[1].replace(b'"thrust_ratio": ', b'"thrust_ratio": 1')] + lines[2:], "digest"),
+])
+def test_a_damaged_prior_log_is_one_line(tmp_path, damage, message):
+    space = _simulated_study(tmp_path / "sim", "chordwise")
+    log = tmp_path / "sim" / "evaluations.jsonl"
+    log.write_bytes(b"\n".join(damage(log.read_bytes().splitlines())) + b"\n")
+    with pytest.raises(OptimizerError, match=message) as refused:
+        SimPrior.load(tmp_path / "sim", feather={"morphology": "chordwise"}, space=space, maximize=True)
+    assert "\n" not in str(refused.value) and str(refused.value).startswith("--prior")
+
+
 def test_calibration_recovers_coefficients_from_simulated_recordings(tmp_path):
     """The fit without real time: recordings as the emulator's plant would serve them (servo and
     feather strongly coupled, read every 4 ms, angle in 0.01°, 5 mN noise), so this runs on a
