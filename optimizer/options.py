@@ -31,6 +31,7 @@ def count(least: int, what: str = "") -> Callable[[str], int]:
             raise argparse.ArgumentTypeError(f"wants a whole number >= {least}{f' ({what})' if what else ''}, "
                                              f"got {value}")
         return value
+    parse.least = least  # type: ignore[attr-defined]  # what the type accepts, for help and tests
     return parse
 
 
@@ -48,6 +49,7 @@ def number(*, above: float | None = None, at_least: float | None = None) -> Call
         if at_least is not None and not value >= at_least:
             raise argparse.ArgumentTypeError(f"wants a number >= {at_least:g}, got {value:g}")
         return value
+    parse.above, parse.at_least = above, at_least  # type: ignore[attr-defined]
     return parse
 
 

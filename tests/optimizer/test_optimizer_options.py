@@ -2,6 +2,8 @@
 import time
 
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from featherstar.app import main
 
@@ -68,3 +70,53 @@ def test_an_unwritable_out_is_refused_at_once(tmp_path, capsys, argv):
     blocker.write_text("")
     _refused([*argv, "--out", str(blocker / "out")], capsys, "--out")
     _refused([*argv, "--out", str(blocker)], capsys, "not a directory")
+
+
+COMMANDS = {"optimize": ["synthetic:plain"], "sweep": ["synthetic:plain"], "codesign": ["synthetic:plain"],
+            "calibrate": ["run.csv"], "paper": []}
+
+
+def _numeric_options():
+    """(command, option, its type) for every option of the optimizer commands, found in the parser."""
+    from featherstar.app import build_parser
+
+    parser = build_parser(only="optimize")
+    commands = next(a for a in parser._actions if a.dest == "command").choices
+    found = []
+    for name in COMMANDS:
+        for action in commands[name]._actions:
+            if action.option_strings and action.type is not None:
+                found.append((name, action.option_strings[0], action.type))
+    return found
+
+
+def test_no_optimizer_option_parses_a_bare_int_or_float():
+    bare = [(c, o) for c, o, t in _numeric_options() if t in (int, float)]
+    assert not bare, f"options without a range check: {bare}"
+
+
+def _bad_values(kind):
+    if hasattr(kind, "least"):
+        return st.one_of(st.integers(max_value=kind.least - 1).map(str), st.sampled_from(["1.5", "x", "", "1e3"]))
+    if hasattr(kind, "above"):
+        low = kind.above if kind.above is not None else kind.at_least
+        bad = st.sampled_from(["nan", "inf", "-inf", "x", ""])
+        if low is None:
+            return bad
+        below = st.floats(max_value=low, allow_nan=False, allow_infinity=False)
+        if kind.above is None:
+            below = below.filter(lambda v: v < low)
+        return st.one_of(bad, below.map(repr))
+    return st.nothing()
+
+
+NUMERIC = [(c, o, t) for c, o, t in _numeric_options() if hasattr(t, "least") or hasattr(t, "above")]
+
+
+# tmp_path and capsys are shared by the examples on purpose: each refusal writes nothing and is read at once.
+@settings(max_examples=3, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.data())
+@pytest.mark.parametrize("command, option, kind", NUMERIC, ids=[f"{c} {o}" for c, o, _ in NUMERIC])
+def test_every_out_of_range_value_of_every_numeric_option_is_one_line(tmp_path, capsys, command, option, kind, data):
+    value = data.draw(_bad_values(kind))
+    _refused([command, *COMMANDS[command], f"{option}={value}", "--out", str(tmp_path / "out")], capsys, option)
