@@ -141,7 +141,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     co = one_line_errors(subparsers.add_parser("codesign", help="joint morphology + stroke search vs the two-stage approach"))
     _common(co, default_noise_N=DEFAULT_NOISE_SD_N)
     co.add_argument("--family", choices=sorted(MORPHOLOGY_VARIABLES), default="chordwise")
-    co.add_argument("--budget", type=count(1), default=DEFAULT_ITERATIONS, help="experiments per approach")
+    co.add_argument("--budget", type=count(DEFAULT_INITIAL_POINTS + 2, "stage 1 needs 2 experiments, the stroke search "
+                                                                      f"{DEFAULT_INITIAL_POINTS}"), default=DEFAULT_ITERATIONS, help="experiments per approach")
     co.add_argument("--period", type=number(above=0.0), default=1.5, dest="period_s")
     co.add_argument("--out", type=out_dir, default="runs/codesign")
     co.add_argument("--resume", action="store_true")
