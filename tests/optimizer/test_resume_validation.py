@@ -184,3 +184,25 @@ def test_a_bench_log_with_two_validations_of_one_controller_is_refused(tmp_path)
     log = ExperimentLog(tmp_path / "evaluations.jsonl", [{**validation, "controller": "median"}], [2])
     with pytest.raises(OptimizerError, match="not one this run plans"):
         check_log(log, bench_entries(SPACE, 4))
+
+
+def test_sweep_resume_from_the_command_line_refuses_a_duplicated_run_and_warns_of_a_cut_one(tmp_path, capsys):
+    from featherstar.app import main
+
+    out = tmp_path / "sweep"
+    argv = ["sweep", "synthetic:plain", "--family", "spanwise", "--workers", "1", "--no-progress", "--out", str(out)]
+    assert main(argv) == 0
+    log = out / "runs.jsonl"
+    good = log.read_bytes()
+    lines = good.splitlines(keepends=True)
+    log.write_bytes(good + lines[5])
+    capsys.readouterr()
+    assert main([*argv, "--resume"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "repeats the run index" in err and str(log) in err
+
+    log.write_bytes(b"".join(lines[:-1]) + lines[-1][:-7])   # the last record cut by a kill
+    assert main([*argv, "--resume"]) == 0
+    warnings_printed = [ln for ln in capsys.readouterr().err.splitlines() if "warning" in ln]
+    assert len(warnings_printed) == 1 and "dropping an incomplete last record" in warnings_printed[0]
+    assert json.loads((out / "summary.json").read_text())["resumed_runs"] == 14 * 12 - 1
