@@ -161,8 +161,7 @@ def run_sweep(
     tasks = sweep_tasks(families, controllers)
     if not tasks:
         raise OptimizerError("the sweep plans no runs (no families or no controllers)")
-    first = tasks[0].controller.stroke(amplitude_deg)
-    preflight(objective, {**tasks[0].geometry.overrides(), **stroke_overrides(first)}, plan.run_length_s(first.period_s))
+    _preflight(objective, tasks, plan, amplitude_deg)
     started = time.perf_counter()
     log = None if log_path is None else ExperimentLog.open(
         log_path, _header(families, controllers, plan, amplitude_deg, context), resume=resume)
@@ -192,6 +191,17 @@ def run_sweep(
         raise OptimizerError(f"every sweep run failed; first error: {failed[0]['error']}")
     return SweepResult(ordered, tabulate(ordered), time.perf_counter() - started, executor.slots,
                        len(tasks) - len(todo))
+
+
+def _preflight(objective: Objective, tasks: Sequence[Task], plan: MeasurementPlan, amplitude_deg: float) -> None:
+    """The first run of each kind of geometry (chordwise, spanwise, a reference), planned and not
+    simulated: a sweep that cannot work is refused before its first run, not after its last."""
+    kinds = {}
+    for task in tasks:
+        kinds.setdefault((task.geometry.family, task.geometry.reference), task)
+    for task in kinds.values():
+        stroke = task.controller.stroke(amplitude_deg)
+        preflight(objective, {**task.geometry.overrides(), **stroke_overrides(stroke)}, plan.run_length_s(stroke.period_s))
 
 
 _PLANNED_FIELDS = ("family", "reference", "width_m", "length_m", "ratio", "t_up_s", "t_down_s", "t_hold_s")
