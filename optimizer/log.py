@@ -89,7 +89,7 @@ class ExperimentLog:
                 "another --out"
             )
         try:
-            stored, log = cls.read(path)
+            stored, log = cls.read(path, repair=True)
         except OptimizerError as exc:
             raise OptimizerError(f"cannot resume: {exc}") from None
         if {**stored, "format": FORMAT_VERSION} != wanted:
@@ -99,10 +99,11 @@ class ExperimentLog:
         return log
 
     @classmethod
-    def read(cls, path: str | os.PathLike) -> tuple[dict, "ExperimentLog"]:
-        """(header, log) of an existing log, every record checked against its digest (format 2)."""
+    def read(cls, path: str | os.PathLike, *, repair: bool = False) -> tuple[dict, "ExperimentLog"]:
+        """(header, log) of an existing log, every record checked against its digest (format 2).
+        `repair`: truncate a cut last line away (only for a log about to be appended to)."""
         path = Path(path)
-        numbered = read_records(path)
+        numbered = read_records(path, repair=repair)
         stored = numbered[0][1] if numbered else {}
         if stored.get("kind") != "header":
             raise OptimizerError(f"{path}: its first line is not a log header")
@@ -124,7 +125,7 @@ class ExperimentLog:
 
     def append(self, record: dict) -> None:
         self.records.append(record)
-        self.lines.append(0)
+        self.lines.append((self.lines[-1] if self.lines else 1) + 1)
         content = json.loads(dumps(record))
         if self.format >= 2:
             content[DIGEST_KEY] = digest(content)
@@ -143,11 +144,11 @@ class ExperimentLog:
                 os.close(fd)
 
 
-def read_records(path: Path) -> list[tuple[int, dict]]:
+def read_records(path: Path, *, repair: bool = False) -> list[tuple[int, dict]]:
     """(line number, record) of every complete line of a log. A last line without its newline (a
-    write cut by a hard kill) is dropped with a LogRepairWarning and truncated away, so the next
-    append starts on a clean line; any other line that is not UTF-8 JSON of a record with a `kind`
-    is refused with one line naming it."""
+    write cut by a hard kill) is dropped with a LogRepairWarning (and, with `repair`, truncated
+    away so the next append starts on a clean line); any other line that is not UTF-8 JSON of a
+    record with a `kind` is refused with one line naming it."""
     try:
         raw = path.read_bytes()
     except OSError as exc:
@@ -156,8 +157,9 @@ def read_records(path: Path) -> list[tuple[int, dict]]:
     if len(complete) != len(raw):
         warnings.warn(f"{path}: dropping an incomplete last record ({len(raw) - len(complete)} bytes, "
                       "a write cut by a hard kill)", LogRepairWarning, stacklevel=3)
-        with open(path, "r+b") as handle:
-            handle.truncate(len(complete))
+        if repair:
+            with open(path, "r+b") as handle:
+                handle.truncate(len(complete))
     records = []
     for number, line in enumerate(complete.split(b"\n"), start=1):
         if not line.strip():

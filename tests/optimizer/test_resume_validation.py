@@ -206,3 +206,14 @@ def test_sweep_resume_from_the_command_line_refuses_a_duplicated_run_and_warns_o
     warnings_printed = [ln for ln in capsys.readouterr().err.splitlines() if "warning" in ln]
     assert len(warnings_printed) == 1 and "dropping an incomplete last record" in warnings_printed[0]
     assert json.loads((out / "summary.json").read_text())["resumed_runs"] == 14 * 12 - 1
+
+
+def test_a_format_1_log_without_digests_still_resumes(sweep_log, tmp_path):
+    lines = [json.loads(line) for line in sweep_log.splitlines()]
+    lines[0]["format"] = 1
+    old = [lines[0]] + [{k: v for k, v in r.items() if k != "digest"} for r in lines[1:-3]]
+    path = tmp_path / "runs.jsonl"
+    path.write_text("".join(json.dumps(r, sort_keys=True) + "\n" for r in old))
+    resumed = _sweep(path, resume=True)
+    assert resumed.resumed_runs == len(old) - 1 and _rows(resumed) == _rows(_sweep(None))
+    assert all("digest" not in json.loads(line) for line in path.read_text().splitlines())   # one format per log
