@@ -141,8 +141,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     co = one_line_errors(subparsers.add_parser("codesign", help="joint morphology + stroke search vs the two-stage approach"))
     _common(co, default_noise_N=DEFAULT_NOISE_SD_N)
     co.add_argument("--family", choices=sorted(MORPHOLOGY_VARIABLES), default="chordwise")
-    co.add_argument("--budget", type=count(DEFAULT_INITIAL_POINTS + 2, "stage 1 needs 2 experiments, the stroke search "
-                                                                      f"{DEFAULT_INITIAL_POINTS}"), default=DEFAULT_ITERATIONS, help="experiments per approach")
+    budget = count(DEFAULT_INITIAL_POINTS + 2, f"stage 1 needs 2 experiments, the stroke search {DEFAULT_INITIAL_POINTS}")
+    co.add_argument("--budget", type=budget, default=DEFAULT_ITERATIONS, help="experiments per approach")
     co.add_argument("--period", type=number(above=0.0), default=1.5, dest="period_s")
     co.add_argument("--out", type=out_dir, default="runs/codesign")
     co.add_argument("--resume", action="store_true")
@@ -177,6 +177,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     paper.add_argument("--out", type=out_dir, default="runs/paper", metavar="DIR", help="output directory (default runs/paper)")
     _where(paper, batches=False)
     paper.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    paper.add_argument("--resume", action="store_true",
+                       help="continue the report in --out: only the experiments its tasks.jsonl lacks")
     paper.set_defaults(func=command("featherstar paper", _paper_command))
 
 
@@ -296,7 +298,7 @@ def _paper_command(args: argparse.Namespace) -> int:
     resolution = dataclasses.replace(QUICK if args.quick else FULL, workers=args.workers)
     with _executor(args, default_workers=resolution.workers or os.cpu_count() or 1) as executor:
         path = generate_report(args.out, quick=args.quick, progress=not args.no_progress, resolution=resolution,
-                               executor=executor)
+                               executor=executor, resume=args.resume)
     print(f"wrote {path} (figures and paper.json beside it)")
     return 0
 
