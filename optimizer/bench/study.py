@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Any, Callable, Mapping
 
 from ..acquisition import DEFAULT_EXPLORATION_RATIO
-from ..bayes import DEFAULT_INITIAL_POINTS, OptimizationRun, StrokeOptimizer, check_in_order, study_entries
+from ..bayes import DEFAULT_INITIAL_POINTS, OptimizationRun, StrokeOptimizer
 from ..errors import OptimizerError
 from ..evaluation import ITERATION_STREAM, MeasurementPlan, evaluate, validate
 from ..log import ExperimentLog
@@ -36,6 +36,7 @@ from ..study import (
     validation_overrides,
     write_study_outputs,
 )
+from ..study_log import check_in_order, study_entries
 from .objective import DEFAULT_MAX_ATTEMPTS, BenchObjective, Retrying
 from .run import BenchFault
 from .sim_prior import SimPrior
