@@ -33,8 +33,10 @@ from .errors import OptimizerError
 from .evaluation import ITERATION_STREAM, Evaluation, MeasurementPlan, evaluate
 from .executor import Executor, InlineExecutor
 from .log import ExperimentLog
-from .objective import Objective
+from .objective import Objective, preflight
+from .resume import check_log
 from .space import SearchSpace
+from .study_log import check_in_order, study_entries
 
 # MATLAB bayesopt's NumSeedPoints default: random points before the GP takes over.
 DEFAULT_INITIAL_POINTS = 4
@@ -260,15 +262,18 @@ def optimize(
         # Only batched logs name their batch size: sequential logs written before batches existed resume.
         **({"batch_size": batch_size} if batch_size > 1 else {}),
     }
+    # The first random point's run, planned and not simulated: a setup that cannot work stops here.
+    preflight(objective, space.overrides(space.point(space.sample(np.random.default_rng([plan.seed, 0]), 1)[0])),
+              plan.run_length_s(space.period_s))
     log = ExperimentLog.open(log_path, header, resume=resume)
+    check_log(log, study_entries(space, iterations))
     optimizer = StrokeOptimizer(
         space, maximize=maximize, n_initial_points=n_initial_points,
         exploration_ratio=exploration_ratio, seed=plan.seed,
     )
     evaluations = [r for r in log.records if r["kind"] == "evaluation"]
     estimates = {r["index"]: r for r in log.records if r["kind"] == "estimate"}
-    if [r["index"] for r in evaluations] != list(range(len(evaluations))):
-        raise OptimizerError(f"{log_path}: evaluation indices are not 0..{len(evaluations) - 1} in order")
+    check_in_order(log)
     # A batch cut short is asked again from its start; its logged part is kept, not rerun.
     first = len(evaluations) - len(evaluations) % batch_size if len(evaluations) < iterations else len(evaluations)
     optimizer.tell_many([r["params"] for r in evaluations[:first]], [r["thrust_ratio"] for r in evaluations[:first]])

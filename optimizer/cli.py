@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Sequence
 
 from ..fmu_src.errors import FeatherstarError
-from .bayes import DEFAULT_ITERATIONS
+from .bayes import DEFAULT_INITIAL_POINTS, DEFAULT_ITERATIONS
 from .bench.cli import add_bench_options, bench_optimize, check_bench_arguments
 from .calibration.cli import register_calibrate
 from .codesign import MORPHOLOGY_VARIABLES, codesign
@@ -24,8 +24,10 @@ from .executor import Executor, make_executor
 from .figures import sweep_figure
 from .loadcell import DEFAULT_NOISE_SD_N, LoadCell
 from .objective import Objective, SceneObjective, WithOverrides
+from .options import command, count, number, one_line_errors, out_dir
 from .space import STROKE_VARIABLES, ServoLimits, stroke_space
-from .study import run_study
+from .postprocess import optional
+from .study import SUMMARY_KEYS, run_study
 from .sweep import FAMILIES, format_table, run_sweep, write_csv
 from .synthetic import SyntheticFeather
 
@@ -73,10 +75,10 @@ def _common(parser: argparse.ArgumentParser, *, default_noise_N: float) -> None:
     parser.add_argument("--set", dest="overrides", metavar="KEY=VALUE", type=_override, action="extend", nargs="+",
                         default=[], help="scene overrides, one or more per --set, repeatable (e.g. "
                         "feather.width_ratio=7.5)")
-    parser.add_argument("--noise-N", type=float, default=default_noise_N, metavar="SD",
+    parser.add_argument("--noise-N", type=number(at_least=0.0), default=default_noise_N, metavar="SD",
                         help=f"load-cell noise sd in newtons (default {default_noise_N:g}; 0 = ideal sensor)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the noise and of the optimizer")
-    parser.add_argument("--amplitude-deg", type=float, default=60.0, help="stroke amplitude, peak to peak")
+    parser.add_argument("--seed", type=count(0), default=0, help="seed of the noise and of the optimizer")
+    parser.add_argument("--amplitude-deg", type=number(above=0.0), default=60.0, help="stroke amplitude, peak to peak")
 
 
 def _where(parser: argparse.ArgumentParser, *, batches: bool) -> None:
@@ -84,12 +86,12 @@ def _where(parser: argparse.ArgumentParser, *, batches: bool) -> None:
     parser.add_argument("--scheduler", default=None, metavar="ADDRESS",
                         help="run on this Dask scheduler (e.g. tcp://host:8786) instead of local processes")
     if batches:
-        parser.add_argument("--batch-size", type=int, default=1, metavar="K",
+        parser.add_argument("--batch-size", type=count(1), default=1, metavar="K",
                             help="evaluations asked (constant liar) and run at once (default 1)")
-        parser.add_argument("--workers", type=int, default=None, metavar="N",
+        parser.add_argument("--workers", type=count(1), default=None, metavar="N",
                             help="local processes (default: the batch size, at most all cores)")
     else:
-        parser.add_argument("--workers", type=int, default=None, metavar="N", help="local processes (default: all cores)")
+        parser.add_argument("--workers", type=count(1), default=None, metavar="N", help="local processes (default: all cores)")
 
 
 def _executor(args: argparse.Namespace, *, default_workers: int | None = None) -> Executor:
@@ -101,51 +103,51 @@ def _executor(args: argparse.Namespace, *, default_workers: int | None = None) -
 
 
 def _batch_workers(args: argparse.Namespace) -> int:
-    if args.batch_size < 1:
-        raise OptimizerError(f"--batch-size {args.batch_size} must be >= 1")
     return min(args.batch_size, os.cpu_count() or 1)
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the optimize, sweep, codesign, calibrate and paper subcommands; each sets `func`."""
-    opt = subparsers.add_parser("optimize", help="Bayesian optimization of the stroke (paper Sec. II-D)")
+    opt = one_line_errors(subparsers.add_parser("optimize", help="Bayesian optimization of the stroke (paper Sec. II-D)"))
     _common(opt, default_noise_N=DEFAULT_NOISE_SD_N)
     opt.add_argument("--objective", choices=("max", "min"), default="max", help="best (max TR) or worst (min TR)")
-    opt.add_argument("--iterations", type=int, default=DEFAULT_ITERATIONS)
-    opt.add_argument("--period", type=float, default=1.5, dest="period_s", help="stroke period in s (paper: 1.5, 3)")
+    opt.add_argument("--iterations", type=count(DEFAULT_INITIAL_POINTS, "the optimizer's random initial points"),
+                     default=DEFAULT_ITERATIONS)
+    opt.add_argument("--period", type=number(above=0.0), default=1.5, dest="period_s", help="stroke period in s (paper: 1.5, 3)")
     opt.add_argument("--bounds", type=_bounds, action="append", default=[], metavar="NAME=LOW,HIGH",
                      help=f"narrow a variable's servo-derived bounds; variables: {', '.join(STROKE_VARIABLES)}")
-    opt.add_argument("--servo-rate", type=float, default=ServoLimits().max_rate_rad_s, metavar="RAD_S",
+    opt.add_argument("--servo-rate", type=number(above=0.0), default=ServoLimits().max_rate_rad_s, metavar="RAD_S",
                      help="servo no-load speed that bounds the ramps")
-    opt.add_argument("--out", type=Path, default=Path("runs/optimize"), help="output directory")
+    opt.add_argument("--out", type=out_dir, default="runs/optimize", help="output directory")
     opt.add_argument("--resume", action="store_true", help="continue the run logged in --out")
     opt.add_argument("--label", default=None, help="morphology label in Fig. 8 (default: the scene)")
     opt.add_argument("--compare", type=Path, nargs="*", default=[], metavar="DIR",
                      help="other optimize output directories to draw in the same Fig. 8")
     _where(opt, batches=True)
     add_bench_options(opt)
-    opt.set_defaults(func=_optimize_command)
+    opt.set_defaults(func=command("featherstar optimize", _optimize_command))
 
-    sweep = subparsers.add_parser("sweep", help="morphology × controller grid sweep (paper Fig. 3)")
+    sweep = one_line_errors(subparsers.add_parser("sweep", help="morphology × controller grid sweep (paper Fig. 3)"))
     _common(sweep, default_noise_N=0.0)
     sweep.add_argument("--family", choices=(*FAMILIES, "both"), default="both")
-    sweep.add_argument("--settle-periods", type=int, default=2)
-    sweep.add_argument("--periods", type=int, default=3, help="measured periods per run")
+    sweep.add_argument("--settle-periods", type=count(0), default=2, help="periods run before measuring")
+    sweep.add_argument("--periods", type=count(1), default=3, help="measured periods per run")
     _where(sweep, batches=False)
     sweep.add_argument("--no-progress", action="store_true")
-    sweep.add_argument("--out", type=Path, default=Path("runs/sweep"), help="output directory (runs.jsonl: every run)")
+    sweep.add_argument("--out", type=out_dir, default="runs/sweep", help="output directory (runs.jsonl: every run)")
     sweep.add_argument("--resume", action="store_true", help="continue the sweep logged in --out: only missing runs")
-    sweep.set_defaults(func=_sweep_command)
+    sweep.set_defaults(func=command("featherstar sweep", _sweep_command))
 
-    co = subparsers.add_parser("codesign", help="joint morphology + stroke search vs the two-stage approach")
+    co = one_line_errors(subparsers.add_parser("codesign", help="joint morphology + stroke search vs the two-stage approach"))
     _common(co, default_noise_N=DEFAULT_NOISE_SD_N)
     co.add_argument("--family", choices=sorted(MORPHOLOGY_VARIABLES), default="chordwise")
-    co.add_argument("--budget", type=int, default=DEFAULT_ITERATIONS, help="experiments per approach")
-    co.add_argument("--period", type=float, default=1.5, dest="period_s")
-    co.add_argument("--out", type=Path, default=Path("runs/codesign"))
+    budget = count(DEFAULT_INITIAL_POINTS + 2, f"stage 1 needs 2 experiments, the stroke search {DEFAULT_INITIAL_POINTS}")
+    co.add_argument("--budget", type=budget, default=DEFAULT_ITERATIONS, help="experiments per approach")
+    co.add_argument("--period", type=number(above=0.0), default=1.5, dest="period_s")
+    co.add_argument("--out", type=out_dir, default="runs/codesign")
     co.add_argument("--resume", action="store_true")
     _where(co, batches=True)
-    co.set_defaults(func=_codesign_command)
+    co.set_defaults(func=command("featherstar codesign", _codesign_command))
 
     register_calibrate(subparsers, _override)
 
@@ -170,11 +172,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
             "both as measured. Example: docs/paper-report/report.md"
         ),
     )
+    one_line_errors(paper)
     paper.add_argument("--quick", action="store_true", help="reduced resolution and budgets (see below)")
-    paper.add_argument("--out", type=Path, default=Path("runs/paper"), metavar="DIR", help="output directory (default runs/paper)")
+    paper.add_argument("--out", type=out_dir, default="runs/paper", metavar="DIR", help="output directory (default runs/paper)")
     _where(paper, batches=False)
     paper.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
-    paper.set_defaults(func=_paper_command)
+    paper.add_argument("--resume", action="store_true",
+                       help="continue the report in --out: only the experiments its tasks.jsonl lacks")
+    paper.set_defaults(func=command("featherstar paper", _paper_command))
 
 
 def _plan(args: argparse.Namespace, **kwargs: int) -> MeasurementPlan:
@@ -185,12 +190,7 @@ def _optimize_command(args: argparse.Namespace) -> int:
     overrides = dict(args.overrides)
     space = stroke_space(args.period_s, amplitude_deg=args.amplitude_deg,
                          servo=ServoLimits(max_rate_rad_s=args.servo_rate), bounds=dict(args.bounds))
-    compare = []
-    for directory in args.compare:
-        path = directory / "summary.json"
-        if not path.exists():
-            raise OptimizerError(f"--compare {directory}: no summary.json there")
-        compare.append(json.loads(path.read_text()))
+    compare = [_summary(directory) for directory in args.compare]
     check_bench_arguments(args)
     if args.hardware:
         if args.scene.startswith(_SYNTHETIC_PREFIX):
@@ -220,6 +220,21 @@ def _optimize_command(args: argparse.Namespace) -> int:
     return 0
 
 
+def _summary(directory: Path) -> dict:
+    """An earlier study's summary.json, for --compare; refused with one line if it is not one."""
+    path = directory / "summary.json"
+    try:
+        summary = json.loads(path.read_bytes().decode("utf-8"))
+    except FileNotFoundError:
+        raise OptimizerError(f"--compare {directory}: no summary.json there") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise OptimizerError(f"--compare {directory}: summary.json is unreadable ({exc})") from None
+    missing = [k for k in SUMMARY_KEYS if not isinstance(summary, dict) or k not in summary]
+    if missing:
+        raise OptimizerError(f"--compare {directory}: summary.json is not a study's summary (no {missing[0]!r})")
+    return summary
+
+
 def _interrupted(out: Path) -> int:
     print(f"interrupted: every finished evaluation is logged under {out}; rerun with --resume to continue",
           file=sys.stderr)
@@ -246,11 +261,12 @@ def _sweep_command(args: argparse.Namespace) -> int:
         return _interrupted(args.out)
     write_csv(result.runs, args.out / "runs.csv")
     write_csv(result.table, args.out / "table.csv")
-    sweep_figure(result.table, ["thrust_ratio", "normalized_thrust"], args.out / "fig3_sweep.png")
     timing = {"wall_s": result.wall_s, "simulation_s": result.simulation_s, "workers": result.workers,
               "runs": len(result.runs), "resumed_runs": result.resumed_runs,
               "failed_runs": sum(1 for r in result.runs if r["error"])}
     (args.out / "summary.json").write_text(json.dumps(timing, indent=2) + "\n")
+    optional("fig3_sweep.png", sweep_figure, result.table, ["thrust_ratio", "normalized_thrust"],
+             args.out / "fig3_sweep.png")
     print(format_table(result.table))
     print(f"{len(result.runs)} runs in {result.wall_s:.1f} s; wrote {args.out}/runs.csv, table.csv, fig3_sweep.png")
     return 0
@@ -282,7 +298,7 @@ def _paper_command(args: argparse.Namespace) -> int:
     resolution = dataclasses.replace(QUICK if args.quick else FULL, workers=args.workers)
     with _executor(args, default_workers=resolution.workers or os.cpu_count() or 1) as executor:
         path = generate_report(args.out, quick=args.quick, progress=not args.no_progress, resolution=resolution,
-                               executor=executor)
+                               executor=executor, resume=args.resume)
     print(f"wrote {path} (figures and paper.json beside it)")
     return 0
 

@@ -15,12 +15,14 @@ from pathlib import Path
 
 import numpy as np
 
+from ..fmu_src.errors import FeatherstarError
 from .bayes import DEFAULT_INITIAL_POINTS
 from .errors import OptimizerError
 from .evaluation import ITERATION_STREAM, MeasurementPlan, evaluate
 from .executor import Executor, InlineExecutor
-from .log import dumps
-from .objective import Objective, Overrides, Trace, WithOverrides
+from .log import ExperimentLog, dumps
+from .objective import Objective, Overrides, Trace, WithOverrides, preflight
+from .resume import Entries, check_log
 from .space import ServoLimits, Variable, stroke_overrides, stroke_space, symmetric_stroke
 from .study import run_study
 from .sweep import L_ROOT_M, W_SPINE_M, Geometry
@@ -42,13 +44,19 @@ class MorphologyObjective:
     objective: Objective
     family: str
 
-    def __call__(self, overrides: Overrides, duration_s: float) -> Trace:
+    def _complete(self, overrides: Overrides) -> dict:
         ratio = float(overrides[MORPHOLOGY_VARIABLES[self.family].name])
         if self.family == "chordwise":
             geometry = Geometry("chordwise", ratio * W_SPINE_M, 0.120)
         else:
             geometry = Geometry("spanwise", 0.120, ratio * L_ROOT_M)
-        return self.objective({**overrides, **geometry.overrides()}, duration_s)
+        return {**overrides, **geometry.overrides()}
+
+    def check(self, overrides: Overrides, duration_s: float) -> None:
+        preflight(self.objective, self._complete(overrides), duration_s)
+
+    def __call__(self, overrides: Overrides, duration_s: float) -> Trace:
+        return self.objective(self._complete(overrides), duration_s)
 
 
 def codesign(
@@ -90,18 +98,9 @@ def codesign(
         context={**context, "approach": "joint"}, label=f"{family} joint", batch_size=batch_size, executor=executor,
     )
 
-    symmetric = stroke_overrides(symmetric_stroke(period_s, amplitude_deg))
-    ratios = [float(r) for r in np.linspace(variable.low, variable.high, stage1)]
-    executor = executor or InlineExecutor()
-    stage1_futures = [
-        executor.submit(evaluate, wrapped, {**symmetric, variable.name: ratio}, period_s, plan,
-                        ITERATION_STREAM, (_STAGE1_INDEX_OFFSET + k,))
-        for k, ratio in enumerate(ratios)
-    ]
-    stage1_rows = []
-    for ratio, future in zip(ratios, stage1_futures):
-        result = future.result()
-        stage1_rows.append({"ratio": ratio, "thrust_ratio": result.thrust_ratio, "mean_thrust_N": result.mean_thrust_N})
+    stage1_rows = _stage1(wrapped, variable, stage1, out_dir / "stage1.jsonl", period_s=period_s, plan=plan,
+                          amplitude_deg=amplitude_deg, resume=resume, context=context,
+                          executor=executor or InlineExecutor())
     chosen = max(stage1_rows, key=lambda r: r["thrust_ratio"])["ratio"]
     fixed = WithOverrides(wrapped, {variable.name: chosen})
     two_stage = run_study(
@@ -123,3 +122,40 @@ def codesign(
     (out_dir / "codesign.json").write_text(json.dumps(json.loads(dumps(report)), indent=2) + "\n")
     return report
 
+
+
+def _stage1(objective: Objective, variable: Variable, count: int, log_path: Path, *, period_s: float,
+            plan: MeasurementPlan, amplitude_deg: float, resume: bool, context: dict, executor: Executor) -> list[dict]:
+    """Stage 1: `count` evenly spaced morphologies under the symmetric stroke, each logged as it
+    completes (so a resumed co-design runs only the missing ones), in ratio order."""
+    symmetric = stroke_overrides(symmetric_stroke(period_s, amplitude_deg))
+    ratios = [float(r) for r in np.linspace(variable.low, variable.high, count)]
+    header = {"stage1": {"variable": variable.name, "ratios": ratios, "period_s": period_s,
+                         "amplitude_deg": amplitude_deg}, "measurement": plan.describe(), "context": context}
+    log = ExperimentLog.open(log_path, header, resume=resume)
+    check_log(log, [Entries("stage1", {"k": "int", "ratio": "number", "thrust_ratio": "number",
+                                       "mean_thrust_N": "number"}, key="k",
+                            planned=lambda k: {"ratio": ratios[k]} if isinstance(k, int) and 0 <= k < count else None,
+                            plan=f"morphologies 0..{count - 1}")])
+    rows = {r["k"]: r for r in log.records}
+    futures = {executor.submit(_stage1_run, objective, {**symmetric, variable.name: ratio}, period_s, plan, k): k
+               for k, ratio in enumerate(ratios) if k not in rows}
+    for future in executor.as_completed(list(futures)):
+        k = futures[future]
+        result = future.result()
+        if isinstance(result, str):
+            raise OptimizerError(f"stage 1 at {variable.name} = {ratios[k]:g} could not be simulated: {result}; "
+                                 f"the finished ones are in {log_path}")
+        rows[k] = {"kind": "stage1", "k": k, "ratio": ratios[k], "thrust_ratio": result.thrust_ratio,
+                   "mean_thrust_N": result.mean_thrust_N}
+        log.append(rows[k])
+    return [{key: float(rows[k][key]) for key in ("ratio", "thrust_ratio", "mean_thrust_N")} for k in range(count)]
+
+
+def _stage1_run(objective: Objective, overrides: dict, period_s: float, plan: MeasurementPlan, k: int):
+    """One stage-1 experiment, in a worker; a simulation refusing it comes back as its message
+    (not all of our errors pickle)."""
+    try:
+        return evaluate(objective, overrides, period_s, plan, ITERATION_STREAM, (_STAGE1_INDEX_OFFSET + k,))
+    except FeatherstarError as exc:
+        return str(exc)

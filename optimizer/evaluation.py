@@ -12,6 +12,7 @@ from typing import Sequence
 
 import numpy as np
 
+from .errors import OptimizerError
 from .loadcell import LoadCell, Measurement, measure
 from .objective import Objective, Overrides
 
@@ -29,6 +30,20 @@ class MeasurementPlan:
     settle_periods: int = 3
     periods: int = 5
     seed: int = 0
+
+    def __post_init__(self) -> None:
+        # Refused here, not in the first worker: a negative settling would measure another window,
+        # zero periods nothing, a negative seed fails inside numpy.
+        for name, value, least in (("settle_periods", self.settle_periods, 0), ("periods", self.periods, 1),
+                                   ("seed", self.seed, 0)):
+            if isinstance(value, bool) or not isinstance(value, int) or value < least:
+                raise OptimizerError(f"{name} = {value!r} must be a whole number >= {least}")
+
+    def run_length_s(self, period_s: float, *, windows: int = 1, periods: int | None = None) -> float:
+        """Settling plus `windows` × `periods` periods, and one extra load-cell sample so the last
+        window's final sample is complete."""
+        periods = self.periods if periods is None else periods
+        return (self.settle_periods + windows * periods) * period_s + 2.0 / self.load_cell.sample_rate_hz
 
     def describe(self) -> dict:
         return {
@@ -84,9 +99,7 @@ def run_measured(
 ) -> tuple[list[Measurement], float]:
     """Run once, long enough for settling plus `windows` × `periods` periods; measure each window."""
     periods = plan.periods if periods is None else periods
-    # One extra load-cell sample of run time so the last window's final sample is complete.
-    duration_s = (plan.settle_periods + windows * periods) * period_s + 2.0 / plan.load_cell.sample_rate_hz
-    trace = objective(overrides, duration_s)
+    trace = objective(overrides, plan.run_length_s(period_s, windows=windows, periods=periods))
     measurements = measure(
         trace.time_s, trace.thrust_N, period_s, plan.load_cell, rng,
         settle_periods=plan.settle_periods, periods=periods, windows=windows,

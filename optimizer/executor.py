@@ -19,12 +19,14 @@ import concurrent.futures
 import os
 import socket
 import sys
+import threading
 from abc import ABC, abstractmethod
 from typing import Any, Callable, Collection, Iterator
 
 from tqdm import tqdm
 
 from .errors import OptimizerError
+from .lifeline import bind_to_parent
 
 # How long a client waits for the scheduler before calling the address unreachable.
 DASK_CONNECT_TIMEOUT_S = 10.0
@@ -121,13 +123,18 @@ class InlineExecutor(Executor):
 class ProcessExecutor(Executor):
     """Local worker processes (Python's default start method: forked on Linux, so workers start
     without re-importing anything; objectives load their scene lazily, so no FMU handle crosses
-    the fork)."""
+    the fork). The workers die with this process, however it dies (featherstar.optimizer.lifeline)."""
 
     def __init__(self, workers: int | None = None) -> None:
         if workers is not None and workers < 1:
             raise OptimizerError(f"workers = {workers} must be >= 1")
         self._workers = workers or os.cpu_count() or 1
-        self._pool = concurrent.futures.ProcessPoolExecutor(max_workers=self._workers)
+        main = threading.current_thread() is threading.main_thread()
+        self._pool = concurrent.futures.ProcessPoolExecutor(
+            max_workers=self._workers, initializer=bind_to_parent, initargs=(os.getpid(), main))
+        # Fork the workers now, from this thread: the kernel's parent-death signal follows the
+        # forking thread, so they must not be forked by a thread that ends before the pool.
+        self._pool.submit(int).result()
 
     @property
     def slots(self) -> int:

@@ -37,6 +37,15 @@ class Objective(Protocol):
         """Run the experiment with these overrides for at least duration_s of simulated time."""
 
 
+def preflight(objective: Objective, overrides: Overrides, duration_s: float) -> None:
+    """Refuse, before any experiment runs, a setup the objective can tell cannot work: an
+    objective may offer `check(overrides, duration_s)` (a scene's plan, built without simulating);
+    one that does not is taken on trust."""
+    check = getattr(objective, "check", None)
+    if check is not None:
+        check(overrides, duration_s)
+
+
 def _master_api() -> tuple[Any, Any] | None:
     """(run_scene, load_scene) of the FMU master (featherstar.cosim.swimmer.run); None when it cannot be
     imported (a broken install: the optimizer's pure parts still work)."""
@@ -45,6 +54,12 @@ def _master_api() -> tuple[Any, Any] | None:
     except ImportError:
         return None
     return api.run_scene, api.load_scene
+
+
+def _scene_plan(scene: Any, outputs: list[str]) -> Any:
+    """The master's plan of a scene (every block resolved, wiring and signals checked; no FMU
+    loaded, nothing simulated)."""
+    return importlib.import_module("featherstar.cosim.scene.graph").plan(scene, outputs)
 
 
 def master_available() -> bool:
@@ -66,6 +81,14 @@ class SceneObjective:
     scene: str
     overrides: Mapping[str, str | float] = field(default_factory=dict)
     thrust_signal: str = "feather.thrust_N"
+
+    def check(self, overrides: Overrides, duration_s: float) -> None:
+        """The run's plan, built and thrown away: an unknown override, a scene without the thrust
+        signal (a robot with two feathers), bad wiring all stop here, before any run."""
+        if _master_api() is None:
+            raise OptimizerError("the FMU master is not available in this install")
+        scene = _load_scene(self.scene).with_overrides({**self.overrides, **overrides, RUN_LENGTH_OVERRIDE: duration_s})
+        _scene_plan(scene, [self.thrust_signal])
 
     def __call__(self, overrides: Overrides, duration_s: float) -> Trace:
         api = _master_api()
@@ -93,6 +116,9 @@ class WithOverrides:
 
     objective: Objective
     overrides: Mapping[str, str | float]
+
+    def check(self, overrides: Overrides, duration_s: float) -> None:
+        preflight(self.objective, {**self.overrides, **overrides}, duration_s)
 
     def __call__(self, overrides: Overrides, duration_s: float) -> Trace:
         return self.objective({**self.overrides, **overrides}, duration_s)

@@ -21,6 +21,7 @@ from .executor import Executor, InlineExecutor
 from .figures import progress_figure, validation_figure
 from .log import dumps
 from .objective import Objective
+from .postprocess import optional
 from .space import LOG_HOLD_MOVE, LOG_HOLD_UP_DOWN, LOG_UP_DOWN, SearchSpace, stroke_overrides, symmetric_stroke
 
 VALIDATION_REPEATS = 10
@@ -122,17 +123,26 @@ def write_study_outputs(
     measured: bool = False,
 ) -> None:
     """Fig. 6, Fig. 8 and summary.json; `measured` marks a bench study in the figures' titles."""
-    source = "measured on the bench" if measured else "simulated"
-    progress_figure(run.evaluations, run.estimates, run.optimizer.space.names, out_dir / "fig6_progress.png",
-                    title=f"Fig. 6: optimizer progress, {label} ({source})")
-    rows = [row for other in compare for row in validation_rows(other, other.get("label", "?"))]
-    validation_figure(rows + validation_rows(summary, label), out_dir / "fig8_validation.png",
-                      title=f"Fig. 8: validation, {source}")
     (out_dir / "summary.json").write_text(json.dumps(json.loads(dumps(summary)), indent=2) + "\n")
+    # Then the figures: optional, a failure there is a warning (summary.json is already written).
+    source = "measured on the bench" if measured else "simulated"
+    optional("fig6_progress.png", progress_figure, run.evaluations, run.estimates, run.optimizer.space.names,
+             out_dir / "fig6_progress.png", title=f"Fig. 6: optimizer progress, {label} ({source})")
+    rows = validation_rows(summary, label)
+    for other in compare:
+        rows = (optional(f"comparison with {other.get('label', '?')} in Fig. 8", validation_rows, other,
+                         other.get("label", "?")) or []) + rows
+    optional("fig8_validation.png", validation_figure, rows, out_dir / "fig8_validation.png",
+             title=f"Fig. 8: validation, {source}")
+
+
+SUMMARY_KEYS = ("objective", "thrust_ratio", "thrust_ratio_sd", "mean_thrust_N", "mean_thrust_sd_N",
+                "baseline_thrust_ratio", "baseline_thrust_ratio_sd", "baseline_mean_thrust_N",
+                "baseline_mean_thrust_sd_N")
 
 
 def validation_rows(summary: Mapping, morphology: str) -> list[dict]:
-    """Fig. 8 rows (optimum and baseline) from a summary."""
+    """Fig. 8 rows (optimum and baseline) from a summary (one with every SUMMARY_KEYS key)."""
     controller = "best" if summary["objective"] == "max" else "worst"
     return [
         {"morphology": morphology, "controller": controller, "thrust_ratio": summary["thrust_ratio"],

@@ -34,7 +34,8 @@ from .errors import OptimizerError
 from .evaluation import SWEEP_STREAM, MeasurementPlan, evaluate
 from .executor import Executor, ProcessExecutor, Progress
 from .log import ExperimentLog
-from .objective import Objective
+from .resume import Entries, check_log
+from .objective import Objective, preflight
 from .space import stroke_overrides
 
 W_SPINE_M = 0.010
@@ -105,11 +106,7 @@ class Task:
 def run_task(objective: Objective, task: Task, plan: MeasurementPlan, amplitude_deg: float) -> dict:
     """One sweep run, in a worker. Errors become data: one bad geometry must not sink the sweep."""
     stroke = task.controller.stroke(amplitude_deg)
-    row = {
-        "index": task.index, "family": task.geometry.family, "reference": task.geometry.reference,
-        "width_m": task.geometry.width_m, "length_m": task.geometry.length_m, "ratio": task.geometry.ratio,
-        "t_up_s": task.controller.t_up_s, "t_down_s": task.controller.t_down_s, "t_hold_s": task.controller.t_hold_s,
-    }
+    row = _task_fields(task)
     try:
         result = evaluate(
             objective, {**task.geometry.overrides(), **stroke_overrides(stroke)}, stroke.period_s, plan,
@@ -162,10 +159,15 @@ def run_sweep(
     so a log is never resumed with another setup.
     """
     tasks = sweep_tasks(families, controllers)
+    if not tasks:
+        raise OptimizerError("the sweep plans no runs (no families or no controllers)")
+    _preflight(objective, tasks, plan, amplitude_deg)
     started = time.perf_counter()
     log = None if log_path is None else ExperimentLog.open(
         log_path, _header(families, controllers, plan, amplitude_deg, context), resume=resume)
-    runs = {r["index"]: _row(r) for r in (log.records if log else []) if r.get("kind") == "run"}
+    if log is not None:
+        check_log(log, [log_entries(tasks)])
+    runs = {r["index"]: _row(r) for r in (log.records if log else [])}
     todo = [task for task in tasks if task.index not in runs]
     owned = executor is None
     executor = executor or ProcessExecutor()
@@ -191,6 +193,45 @@ def run_sweep(
                        len(tasks) - len(todo))
 
 
+def _preflight(objective: Objective, tasks: Sequence[Task], plan: MeasurementPlan, amplitude_deg: float) -> None:
+    """The first run of each kind of geometry (chordwise, spanwise, a reference), planned and not
+    simulated: a sweep that cannot work is refused before its first run, not after its last."""
+    kinds = {}
+    for task in tasks:
+        kinds.setdefault((task.geometry.family, task.geometry.reference), task)
+    for task in kinds.values():
+        stroke = task.controller.stroke(amplitude_deg)
+        preflight(objective, {**task.geometry.overrides(), **stroke_overrides(stroke)}, plan.run_length_s(stroke.period_s))
+
+
+_PLANNED_FIELDS = ("family", "reference", "width_m", "length_m", "ratio", "t_up_s", "t_down_s", "t_hold_s")
+
+
+def log_entries(tasks: Sequence[Task]) -> Entries:
+    """What a sweep log's records must be: one run per planned task, its geometry and controller
+    the task's (so a line moved to another index, or another grid's line, is refused)."""
+    by_index = {task.index: task for task in tasks}
+
+    def planned(index) -> dict | None:
+        task = by_index.get(index)
+        if task is None:
+            return None
+        return {k: v for k, v in _task_fields(task).items() if k in _PLANNED_FIELDS}
+
+    fields = {"index": "int", "family": "str", "reference": "bool", "error": "str", "thrust_ratio": "number",
+              "mean_thrust_N": "number", "sim_wall_s": "number",
+              **{k: "number" for k in _PLANNED_FIELDS if k not in ("family", "reference")}}
+    return Entries("run", fields, key="index", planned=planned, plan=f"runs 0..{len(tasks) - 1} of this grid")
+
+
+def _task_fields(task: Task) -> dict:
+    return {
+        "index": task.index, "family": task.geometry.family, "reference": task.geometry.reference,
+        "width_m": task.geometry.width_m, "length_m": task.geometry.length_m, "ratio": task.geometry.ratio,
+        "t_up_s": task.controller.t_up_s, "t_down_s": task.controller.t_down_s, "t_hold_s": task.controller.t_hold_s,
+    }
+
+
 def _header(families, controllers, plan: MeasurementPlan, amplitude_deg: float, context) -> dict:
     return {
         "sweep": {"families": list(families), "amplitude_deg": amplitude_deg,
@@ -203,7 +244,7 @@ def _header(families, controllers, plan: MeasurementPlan, amplitude_deg: float, 
 def _row(record: dict) -> dict:
     """A logged run back as a row: the log spells non-finite floats as strings ('nan')."""
     row = {k: v for k, v in record.items() if k != "kind"}
-    for key in ("thrust_ratio", "mean_thrust_N"):
+    for key in ("thrust_ratio", "mean_thrust_N", "sim_wall_s"):
         row[key] = float(row[key])
     return row
 

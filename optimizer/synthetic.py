@@ -61,6 +61,10 @@ class SyntheticFeather:
             return 0.7 * self.max_flap_fraction * math.exp(-(((ratio - _LENGTH_RATIO_PEAK) / 0.8) ** 2))
         raise OptimizerError(f"unknown feather.morphology {morphology!r}; known: {list(MORPHOLOGIES)}")
 
+    def check(self, overrides: Overrides, duration_s: float) -> None:
+        """What a master's plan would refuse: an unknown morphology."""
+        self.flap_fraction(overrides)
+
     def __call__(self, overrides: Overrides, duration_s: float) -> Trace:
         started = time.perf_counter()
         t_up = float(overrides.get("controller.t_up_s", 0.25))

@@ -15,6 +15,7 @@ from ...hil.hardware import parse_hardware, split_url, with_hardware
 from ..errors import OptimizerError
 from ..evaluation import MeasurementPlan
 from ..loadcell import DEFAULT_NOISE_SD_N, LoadCell
+from ..options import count, number
 from ..space import SearchSpace
 from .objective import DEFAULT_MAX_ATTEMPTS, DEFAULT_REST_S, BenchObjective
 from .run import BenchFault
@@ -33,16 +34,16 @@ def add_bench_options(parser: argparse.ArgumentParser) -> None:
     group.add_argument("--hardware", action="append", default=[], metavar="SLOT=URL",
                        help="servo=URL and loadcell=URL (both), as for `featherstar run --hardware`; tip: add "
                             "&reconnect_s=3 so a brief stall discards one run instead of pausing the study")
-    group.add_argument("--rest-s", type=float, default=DEFAULT_REST_S, metavar="S",
+    group.add_argument("--rest-s", type=number(at_least=0.0), default=DEFAULT_REST_S, metavar="S",
                        help="the feather rests this long at the servo's safe position before every run "
                             "(default %(default)s)")
-    group.add_argument("--settle-periods", type=int, default=3, help="periods run before measuring (default 3)")
-    group.add_argument("--periods", type=int, default=5, help="measured periods per evaluation (default 5)")
-    group.add_argument("--max-attempts", type=int, default=DEFAULT_MAX_ATTEMPTS, metavar="N",
+    group.add_argument("--settle-periods", type=count(0), default=3, help="periods run before measuring (default 3)")
+    group.add_argument("--periods", type=count(1), default=5, help="measured periods per evaluation (default 5)")
+    group.add_argument("--max-attempts", type=count(1), default=DEFAULT_MAX_ATTEMPTS, metavar="N",
                        help="runs of one evaluation discarded in a row before the study pauses (default %(default)s)")
-    group.add_argument("--validation-repeats", type=int, default=BENCH_VALIDATION_REPEATS, metavar="N",
+    group.add_argument("--validation-repeats", type=count(1), default=BENCH_VALIDATION_REPEATS, metavar="N",
                        help="validation sets of the optimum and the baseline (paper: 10)")
-    group.add_argument("--validation-periods", type=int, default=BENCH_VALIDATION_PERIODS, metavar="N",
+    group.add_argument("--validation-periods", type=count(1), default=BENCH_VALIDATION_PERIODS, metavar="N",
                        help="periods per validation set (paper: 5)")
     group.add_argument("--prior", type=Path, default=None, metavar="DIR",
                        help="a simulated `featherstar optimize` study of the same feather: its best strokes are "

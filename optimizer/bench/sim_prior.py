@@ -16,7 +16,6 @@ the prior is wrong beyond those few runs: the GP then explores as without a prio
 """
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -25,6 +24,8 @@ from typing import Any, Mapping
 import numpy as np
 
 from ..errors import OptimizerError
+from ..log import ExperimentLog
+from ..resume import Entries, check_log
 from ..space import SearchSpace
 
 MIN_SEPARATION = 0.1   # of each variable's range: initial points must not all sit on one spot
@@ -54,6 +55,13 @@ def study_morphology(scene: str, overrides: Mapping[str, Any]) -> dict[str, Any]
     return described
 
 
+# A simulated study's log, read as data: its evaluations (the prior) and estimates, each once.
+PRIOR_ENTRIES = (
+    Entries("evaluation", {"index": "int", "params": "dict", "thrust_ratio": "number"}, key="index"),
+    Entries("estimate", {"index": "int", "params": "dict", "thrust_ratio": "number"}, key="index"),
+)
+
+
 @dataclass(frozen=True)
 class SimPrior:
     """The evaluations of a simulated study (`featherstar optimize` output directory)."""
@@ -74,11 +82,11 @@ class SimPrior:
             raise OptimizerError(f"--prior {directory}: no evaluations.jsonl there (give a `featherstar optimize` "
                                  "output directory)")
         try:
-            lines = [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
-        except json.JSONDecodeError as exc:
-            raise OptimizerError(f"--prior {directory}: evaluations.jsonl is not valid JSONL ({exc})") from None
-        header = lines[0] if lines else {}
-        if header.get("kind") != "header" or "context" not in header:
+            header, log = ExperimentLog.read(path)
+            check_log(log, PRIOR_ENTRIES)
+        except OptimizerError as exc:
+            raise OptimizerError(f"--prior {directory}: {exc}") from None
+        if "context" not in header or not isinstance(header["context"], dict):
             raise OptimizerError(f"--prior {directory}: evaluations.jsonl has no study header")
         if header.get("measured"):
             raise OptimizerError(f"--prior {directory}: that is a bench study; the prior must be a simulated one")
@@ -96,10 +104,10 @@ class SimPrior:
             if not math.isclose(float(their_space.get(key, math.nan)), float(ours[key]), rel_tol=1e-9):
                 raise OptimizerError(f"--prior {directory}: its stroke {key} is {their_space.get(key)}, this "
                                      f"study's is {ours[key]}")
-        records = [r for r in lines[1:] if r.get("kind") == "evaluation" and math.isfinite(r["thrust_ratio"])]
+        records = [r for r in log.records if r["kind"] == "evaluation" and not isinstance(r["thrust_ratio"], str)]
         if not records:
             raise OptimizerError(f"--prior {directory}: no evaluations logged")
-        missing = [n for n in space.names if n not in records[0]["params"]]
+        missing = [n for n in space.names if any(not isinstance(r["params"].get(n), (int, float)) for r in records)]
         if missing:
             raise OptimizerError(f"--prior {directory}: its evaluations have no {', '.join(missing)}")
         return cls(directory, dict(feather), tuple({n: float(r["params"][n]) for n in space.names} for r in records),

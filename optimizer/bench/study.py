@@ -27,6 +27,7 @@ from ..bayes import DEFAULT_INITIAL_POINTS, OptimizationRun, StrokeOptimizer
 from ..errors import OptimizerError
 from ..evaluation import ITERATION_STREAM, MeasurementPlan, evaluate, validate
 from ..log import ExperimentLog
+from ..resume import Entries, check_log
 from ..space import SearchSpace
 from ..study import (
     BASELINE_VALIDATION_INDEX,
@@ -35,6 +36,7 @@ from ..study import (
     validation_overrides,
     write_study_outputs,
 )
+from ..study_log import check_in_order, study_entries
 from .objective import DEFAULT_MAX_ATTEMPTS, BenchObjective, Retrying
 from .run import BenchFault
 from .sim_prior import SimPrior
@@ -89,13 +91,13 @@ def run_bench_study(
         "prior": None if prior is None else prior.describe(),
     }
     log = ExperimentLog.open(out_dir / "evaluations.jsonl", header, resume=resume)
+    check_log(log, bench_entries(space, iterations))
+    check_in_order(log)
     study = _Study(log, on_record)
     optimizer = StrokeOptimizer(space, maximize=maximize, n_initial_points=n_initial_points,
                                 exploration_ratio=exploration_ratio, seed=plan.seed)
     initial = prior.initial_points(space, n_initial_points, maximize=maximize) if prior else []
     evaluations = study.of_kind("evaluation")
-    if [r["index"] for r in evaluations] != list(range(len(evaluations))):
-        raise OptimizerError(f"{log.path}: evaluation indices are not 0..{len(evaluations) - 1} in order")
     optimizer.tell_many([r["params"] for r in evaluations], [r["thrust_ratio"] for r in evaluations])
     estimates = {r["index"]: r for r in study.of_kind("estimate")}
     started = time.perf_counter()
@@ -147,6 +149,20 @@ def run_bench_study(
                    discarded_runs=len(study.of_kind("discarded")), faults=len(study.of_kind("fault")))
     write_study_outputs(out_dir, run, summary, label=label, compare=compare, measured=True)
     return summary
+
+
+def bench_entries(space: SearchSpace, iterations: int) -> list[Entries]:
+    """What a bench study's log holds: the optimizer's evaluations and estimates, the bench's
+    events (discarded runs, faults: they may repeat) and one validation per controller."""
+    return [
+        *study_entries(space, iterations, extra={"bench_wall_s": "number", "from_prior": "bool"}),
+        Entries("discarded", {"reasons": "list"}),
+        Entries("fault", {"message": "str"}),
+        Entries("validation", {"controller": "str", "thrust_ratio": "number", "thrust_ratio_sd": "number",
+                               "mean_thrust_N": "number", "mean_thrust_sd_N": "number"}, key="controller",
+                planned=lambda controller: {} if controller in ("best", "baseline") else None,
+                plan="one validation of the best and one of the baseline"),
+    ]
 
 
 class _Study:

@@ -13,6 +13,8 @@ from pathlib import Path
 
 from ..errors import OptimizerError
 from ..log import dumps
+from ..options import command, number, one_line_errors, out_dir
+from ..postprocess import optional
 from .fit import BIN_S, DEFAULT_COEFFICIENTS, Calibration, calibrate, feather_block
 from .recordings import read_recording
 
@@ -37,6 +39,7 @@ def register_calibrate(subparsers: argparse._SubParsersAction, override_type) ->
                     "directories, or CSVs with time, root angle and thrust columns. The runs must repeat one stroke, "
                     "from rest. The simulated feather's root follows the recorded angle; the fit matches the thrust "
                     f"averaged over {BIN_S * 1e3:g} ms bins over the first window (docs/bench-loop.md says why).")
+    one_line_errors(cal)
     cal.add_argument("runs", nargs="+", type=Path, metavar="RUN", help="run directory or CSV (repeatable)")
     cal.add_argument("--scene", default="testbed", help="scene whose feather block is calibrated (default testbed)")
     cal.add_argument("--set", dest="overrides", metavar="KEY=VALUE", type=override_type, action="extend", nargs="+",
@@ -45,13 +48,13 @@ def register_calibrate(subparsers: argparse._SubParsersAction, override_type) ->
     cal.add_argument("--fit", type=_fit, action="append", default=[], metavar="NAME[=LOW,HIGH]",
                      help=f"coefficient to fit, within its physical range or a narrower one (default: "
                           f"{', '.join(DEFAULT_COEFFICIENTS)}, those the feather has)")
-    cal.add_argument("--window-s", type=float, default=None, metavar="S",
+    cal.add_argument("--window-s", type=number(above=0.0), default=None, metavar="S",
                      help="fit the first S seconds of each run (default: one stroke period, from summary.json)")
     cal.add_argument("--time-column", default=None)
     cal.add_argument("--angle-column", default=None)
     cal.add_argument("--thrust-column", default=None)
-    cal.add_argument("--out", type=Path, default=Path("runs/calibration"), help="output directory")
-    cal.set_defaults(func=_calibrate_command)
+    cal.add_argument("--out", type=out_dir, default="runs/calibration", help="output directory")
+    cal.set_defaults(func=command("featherstar calibrate", _calibrate_command))
 
 
 def _calibrate_command(args: argparse.Namespace) -> int:
@@ -66,6 +69,9 @@ def _calibrate_command(args: argparse.Namespace) -> int:
     result = calibrate(recordings, args.scene, overrides, fit, window_s=args.window_s)
     paths = write_calibration(result, args.out, runs=[r.source for r in recordings], scene=args.scene,
                               overrides=overrides)
+    # The figure is optional post-processing: the calibration is already on disk.
+    if optional("fit.png", _fit_figure, result, [r.source for r in recordings], args.out / "fit.png") is not None:
+        paths.append(args.out / "fit.png")
     for c in result.coefficients:
         print(f"  {c.name:28s} {result.values[c.name]:.4g} ± {result.sd[c.name]:.2g} {c.unit}  "
               f"(range {c.low:g}..{c.high:g}, start {c.start:g})")
@@ -83,9 +89,10 @@ def set_arguments(result: Calibration) -> str:
 
 
 def write_calibration(result: Calibration, out: Path, *, runs: list[str], scene: str, overrides: dict) -> list[Path]:
+    """calibration.json, set.txt and feather-parameters.toml (the figure is drawn separately)."""
     out.mkdir(parents=True, exist_ok=True)
     report = {**result.as_dict(), "scene": scene, "overrides": overrides, "runs": runs, "window_s": result.window_s}
-    paths = [out / "calibration.json", out / "set.txt", out / "feather-parameters.toml", out / "fit.png"]
+    paths = [out / "calibration.json", out / "set.txt", out / "feather-parameters.toml"]
     paths[0].write_text(json.dumps(json.loads(dumps(report)), indent=2) + "\n")
     paths[1].write_text(set_arguments(result) + "\n")
     # The scene's own feather parameters, the feather.* overrides, then the calibrated ones.
@@ -97,11 +104,10 @@ def write_calibration(result: Calibration, out: Path, *, runs: list[str], scene:
     paths[2].write_text(f"# calibrated feather of scene '{scene}' ({', '.join(Path(r).name for r in runs)}):\n"
                         "# replace the parameters line of the scene's [blocks.feather] table with\n"
                         f"parameters = {{ {inline} }}\n")
-    _fit_figure(result, runs, paths[3])
     return paths
 
 
-def _fit_figure(result: Calibration, runs: list[str], path: Path) -> None:
+def _fit_figure(result: Calibration, runs: list[str], path: Path) -> Path:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -118,3 +124,4 @@ def _fit_figure(result: Calibration, runs: list[str], path: Path) -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
+    return path

@@ -97,6 +97,20 @@ class Calibration:
     bin_times_s: np.ndarray
     measured_N: np.ndarray
     simulated_N: np.ndarray
+    converged: bool = True
+    solver_message: str = ""
+
+    def failure(self) -> str | None:
+        """Why this fit is not a calibration (None when it is): a residual, R², value or sd that is
+        not finite, or a least squares that stopped before converging."""
+        stats = {"rms residual": self.rms_residual_N, "R²": self.r_squared,
+                 **{f"{k} value": v for k, v in self.values.items()}, **{f"{k} sd": v for k, v in self.sd.items()}}
+        bad = [f"{name} {value}" for name, value in stats.items() if not math.isfinite(value)]
+        if bad:
+            return f"{', '.join(bad)} (is a recorded sample absurd, or a coefficient without effect on the thrust?)"
+        if not self.converged:
+            return f"the least squares did not converge ({self.solver_message})"
+        return None
 
     def parameter_set(self) -> dict[str, float]:
         """Scene overrides ("feather.NAME": value) that make a scene use the calibrated feather."""
@@ -230,6 +244,12 @@ def calibrate(recordings: Sequence[Recording], scene: str, overrides: Mapping[st
     with tempfile.TemporaryDirectory(prefix="featherstar-calibrate-") as workdir:
         playback = _Playback(block, overrides, recordings, window_s, Path(workdir))
         measured = _binned(np.array([np.interp(playback.grid_s, r.time_s, r.thrust_N) for r in recordings]))
+        for recording, row in zip(recordings, measured):
+            with np.errstate(over="ignore"):
+                overflows = not np.isfinite(np.sum(row**2))   # then no least squares can use this run
+            if overflows:
+                raise OptimizerError(f"{recording.source}: thrust up to {np.max(np.abs(recording.thrust_N)):.3g} N "
+                                     "in the fit window cannot be fitted; is a sample corrupt, or the unit wrong?")
         scale = np.array([c.start for c in coefficients])
 
         def residuals(x: np.ndarray) -> np.ndarray:
@@ -237,10 +257,10 @@ def calibrate(recordings: Sequence[Recording], scene: str, overrides: Mapping[st
             return (simulated[None, :] - measured).ravel()
 
         x0 = _scanned_start(residuals, coefficients, scale)
-        fitted = least_squares(residuals, x0, method="trf", diff_step=1e-3,
-                               bounds=([c.low / s for c, s in zip(coefficients, scale)],
-                                       [c.high / s for c, s in zip(coefficients, scale)]),
-                               max_nfev=max_simulations, x_scale=1.0)
+        try:
+            fitted = _least_squares(residuals, x0, coefficients, scale, max_simulations)
+        except ValueError as exc:   # scipy refuses residuals that are not finite
+            raise OptimizerError(f"calibration failed, nothing written as a parameter set: {exc}") from None
         simulations = playback.runs
     residual = fitted.fun.reshape(measured.shape)
     n_bin = max(1, round(BIN_S / _GRID_S))
@@ -249,7 +269,7 @@ def calibrate(recordings: Sequence[Recording], scene: str, overrides: Mapping[st
     variance = float(np.sum(residual**2) / dof)
     sd, correlation = _covariance(fitted.jac, variance, scale)
     total = float(np.sum((measured - measured.mean()) ** 2))
-    return Calibration(
+    result = Calibration(
         coefficients=coefficients,
         values={n: float(v) for n, v in zip(names, fitted.x * scale)},
         sd=dict(zip(names, sd)),
@@ -264,7 +284,22 @@ def calibrate(recordings: Sequence[Recording], scene: str, overrides: Mapping[st
         bin_times_s=bin_times_s,
         measured_N=measured,
         simulated_N=measured + residual,
+        converged=bool(fitted.status > 0),
+        solver_message=str(fitted.message),
     )
+    failure = result.failure()
+    if failure:
+        raise OptimizerError(f"calibration failed, nothing written as a parameter set: {failure}")
+    return result
+
+
+def _least_squares(residuals, x0: np.ndarray, coefficients: Sequence[Coefficient], scale: np.ndarray,
+                   max_simulations: int):
+    """Trust-region reflective least squares inside each coefficient's range (units of `scale`)."""
+    return least_squares(residuals, x0, method="trf", diff_step=1e-3,
+                         bounds=([c.low / s for c, s in zip(coefficients, scale)],
+                                 [c.high / s for c, s in zip(coefficients, scale)]),
+                         max_nfev=max_simulations, x_scale=1.0)
 
 
 def _scanned_start(residuals, coefficients: Sequence[Coefficient], scale: np.ndarray) -> np.ndarray:

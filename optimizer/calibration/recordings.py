@@ -79,8 +79,13 @@ def read_recording(path: str | Path, *, time_column: str | None = None, angle_co
     source = str(path)
     if not csv_path.is_file():
         raise OptimizerError(f"{source}: no such file (give a CSV or a `featherstar run --out` directory)")
-    with open(csv_path, newline="") as handle:
-        header = next(csv.reader(handle), [])
+    try:
+        with open(csv_path, newline="", encoding="utf-8") as handle:
+            header = next(csv.reader(handle), [])
+    except UnicodeDecodeError as exc:
+        raise OptimizerError(f"{source}: not UTF-8 text (byte {exc.start} of its header); a recording is a CSV") from None
+    except (csv.Error, OSError) as exc:
+        raise OptimizerError(f"{source}: unreadable as CSV ({exc})") from None
     columns: dict[str, str | None] = {}
     for cell in header:
         match = _HEADER.match(cell)
@@ -91,9 +96,11 @@ def read_recording(path: str | Path, *, time_column: str | None = None, angle_co
               _pick(columns, angle_column, ANGLE_NAMES, "angle", source),
               _pick(columns, thrust_column, THRUST_NAMES, "thrust", source)]
     try:
-        data = np.loadtxt(csv_path, delimiter=",", skiprows=1, ndmin=2)
+        data = np.loadtxt(csv_path, delimiter=",", skiprows=1, ndmin=2, encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise OptimizerError(f"{source}: not UTF-8 text (byte {exc.start}); a recording is a CSV") from None
     except ValueError as exc:
-        raise OptimizerError(f"{source}: not a numeric CSV below its header ({exc})") from None
+        raise OptimizerError(f"{source}: not a numeric CSV below its header ({' '.join(str(exc).split())})") from None
     if data.shape[0] < 8 or data.shape[1] != len(names):
         raise OptimizerError(f"{source}: {data.shape[0]} rows of {data.shape[1]} values under {len(names)} "
                              "columns; a run needs at least 8 complete rows")
@@ -107,9 +114,12 @@ def read_recording(path: str | Path, *, time_column: str | None = None, angle_co
     summary = (path if path.is_dir() else path.parent) / "summary.json"
     if summary.is_file():
         try:
-            period = json.loads(summary.read_text()).get("period_s")
-        except json.JSONDecodeError:
-            period = None
+            stored = json.loads(summary.read_bytes().decode("utf-8"))
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+            raise OptimizerError(f"{summary}: unreadable ({exc}); fix or remove it, or give --window-s") from None
+        period = stored.get("period_s") if isinstance(stored, dict) else None
+        if period is not None and not (isinstance(period, (int, float)) and math.isfinite(period) and period > 0):
+            raise OptimizerError(f"{summary}: period_s = {period!r} is not a positive number of seconds")
     return Recording(source, t, a * UNITS["angle"][a_unit], f * UNITS["thrust"][f_unit], (t_unit, a_unit, f_unit),
                      float(period) if period else None)
 

@@ -31,6 +31,7 @@ from ..evaluation import VALIDATION_STREAM, MeasurementPlan, noise_rng
 from ..executor import Executor, Progress, make_executor
 from ..loadcell import LoadCell, measure
 from ..objective import SceneObjective
+from ..postprocess import optional
 from ..space import stroke_overrides, stroke_space, symmetric_stroke
 from ..study import summarize
 from ..sweep import Task, run_task, tabulate
@@ -46,6 +47,7 @@ from .plan import (
     study_specs,
     sweep_geometries,
 )
+from .tasklog import TaskLog
 
 # ---- tasks: top-level functions, run in worker processes; each returns plain data ----
 
@@ -169,17 +171,14 @@ def _robot_controller(family: str, controller: str, results: dict) -> dict | str
 
 
 def run_experiments(
-    res: Resolution, out_dir: Path, *, progress: bool = True, executor: Executor | None = None
+    res: Resolution, out_dir: Path, *, progress: bool = True, executor: Executor | None = None, resume: bool = False
 ) -> tuple[dict, dict]:
-    """Run every task on `executor` (default: local processes, `res.workers`); returns (results
-    by task label, timing)."""
+    """Run every task on `executor` (default: local processes, `res.workers`), logging each result
+    in DIR/tasks.jsonl as it completes; `resume` runs only the tasks that log lacks. Returns
+    (results by task label, timing)."""
     specs = study_specs(res)
     geometries = [g for family in ("chordwise", "spanwise") for g in sweep_geometries(family, res.sweep_geometries)]
     sweep_tasks = [Task(i, g, c) for i, (g, c) in enumerate((g, c) for g in geometries for c in res.sweep_controllers)]
-    owned = executor is None
-    executor = executor or make_executor(workers=res.workers or os.cpu_count() or 1)
-    started = time.perf_counter()
-    results: dict[str, dict] = {}
     # Run order: the long studies first (the robot waits on them), short runs last to fill the gaps;
     # the backlog is ours (the executor only ever holds one task per slot) so robot runs can jump it.
     order = sorted(specs.values(), key=lambda s: (s.family == "plain", s.validate is False, -s.period_s))
@@ -188,9 +187,17 @@ def run_experiments(
                 for f in MORPHOLOGIES]
     backlog += [(f"fig5:{f}", symmetric_task, (f, res)) for f in MORPHOLOGIES]
     backlog += [(f"sweep:{t.index}", sweep_task, (t, res)) for t in sweep_tasks]
-    total = len(backlog) + 2 * len(MORPHOLOGIES)
+    labels = [label for label, _, _ in backlog] + [f"robot:{f}-{c}" for f in MORPHOLOGIES for c in ("best", "worst")]
+    log = TaskLog(out_dir, res.describe(), labels, resume=resume)
+    results: dict[str, dict] = dict(log.done)
+    backlog = [item for item in backlog if item[0] not in results]
+    owned = executor is None
+    executor = executor or make_executor(workers=res.workers or os.cpu_count() or 1)
+    started = time.perf_counter()
     try:
-        with Progress(total, f"paper ({res.name})", enabled=progress) as bar:
+        with Progress(len(labels), f"paper ({res.name})", enabled=progress, initial=len(results)) as bar:
+            for label in list(results):   # resumed studies whose robot runs are still to do
+                _follow_up(label, results, backlog, bar, 0, res)
             pending: dict[Any, str] = {}
             while backlog or pending:
                 slots = executor.slots
@@ -202,18 +209,9 @@ def run_experiments(
                     results[label] = result = future.result()
                     if "run_png" in result:
                         (out_dir / f"fig5_{result['family']}_run.png").write_bytes(result.pop("run_png"))
+                    log.append(label, result)
                     bar.update(running=len(pending), failed="error" in result, note=label)
-                    kind, _, key = label.partition(":")
-                    if kind == "study" and key in (f"{f}-{m}" for f in MORPHOLOGIES for m in ("max", "min")):
-                        family, which = key.rsplit("-", 1)
-                        controller = "best" if which == "max" else "worst"
-                        overrides = _robot_controller(family, controller, results)
-                        robot_label = f"robot:{family}-{controller}"
-                        if isinstance(overrides, str):
-                            results[robot_label] = {"error": overrides, "wall_s": 0.0, "sim_s": 0.0}
-                            bar.update(running=len(pending), failed=True, note=robot_label)
-                        else:
-                            backlog.insert(0, (robot_label, robot_task, (family, controller, overrides, res)))
+                    _follow_up(label, results, backlog, bar, len(pending), res)
     finally:
         if owned:
             executor.close()
@@ -226,6 +224,25 @@ def run_experiments(
         "full_planned_simulated_s": planned_simulated_s(FULL),
     }
     return results, timing
+
+
+def _follow_up(label: str, results: dict, backlog: list, bar: Progress, running: int, res: Resolution) -> None:
+    """After a best or worst study: queue the robot run with its controller (first in line), or
+    record why it cannot run; nothing if that robot run is already done."""
+    kind, _, key = label.partition(":")
+    if kind != "study" or key not in (f"{f}-{m}" for f in MORPHOLOGIES for m in ("max", "min")):
+        return
+    family, which = key.rsplit("-", 1)
+    controller = "best" if which == "max" else "worst"
+    robot_label = f"robot:{family}-{controller}"
+    if robot_label in results:
+        return
+    overrides = _robot_controller(family, controller, results)
+    if isinstance(overrides, str):
+        results[robot_label] = {"error": overrides, "wall_s": 0.0, "sim_s": 0.0}
+        bar.update(running=running, failed=True, note=robot_label)
+    else:
+        backlog.insert(0, (robot_label, robot_task, (family, controller, overrides, res)))
 
 
 def planned_simulated_s(res: Resolution) -> float:
@@ -258,10 +275,11 @@ def collect(results: dict) -> dict:
 
 def generate_report(
     out_dir: str | Path, *, quick: bool, progress: bool = True, resolution: Resolution | None = None,
-    executor: Executor | None = None,
+    executor: Executor | None = None, resume: bool = False,
 ) -> Path:
     """Run the experiments at `resolution` (default QUICK or FULL) on `executor` (default: local
-    processes) and write DIR/report.md, the figures and DIR/paper.json; returns the report's path."""
+    processes) and write DIR/report.md, the figures and DIR/paper.json; returns the report's path.
+    Every finished experiment is logged in DIR/tasks.jsonl; `resume` runs only those it lacks."""
     from .figures import draw_all
     from .report import claims, write_markdown
 
@@ -269,14 +287,24 @@ def generate_report(
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     started = time.time()
-    results, timing = run_experiments(res, out_dir, progress=progress, executor=executor)
+    results, timing = run_experiments(res, out_dir, progress=progress, executor=executor, resume=resume)
     data = collect(results)
-    figures = draw_all(data, res, out_dir)
     timing["total_wall_s"] = time.time() - started
-    table = claims(data)
-    payload = {"resolution": res.describe(), "timing": timing, "started_unix": started, "claims": table,
-               "figures": {k: p.name for k, p in figures.items()}, **data}
-    for study in payload["studies"].values():
-        study.get("summary", {}).pop("validation", None)  # per-set details: kept short
-    (out_dir / "paper.json").write_text(json.dumps(json_safe(payload, drop_arrays=True), indent=1, allow_nan=False) + "\n")
+    payload = {"resolution": res.describe(), "timing": timing, "started_unix": started, "claims": [],
+               "figures": {}, **data}
+    # The results first: the claims, figures and markdown after them are post-processing, whose
+    # failure is a warning and costs none of the hours of experiments in paper.json.
+    _write_payload(out_dir, payload)
+    table = optional("the claims table", claims, data) or []
+    figures = optional("the figures", draw_all, data, res, out_dir) or {}
+    payload.update(claims=table, figures={k: p.name for k, p in figures.items()})
+    _write_payload(out_dir, payload)
     return write_markdown(out_dir / "report.md", data, table, figures, res, timing)
+
+
+def _write_payload(out_dir: Path, payload: dict) -> None:
+    """paper.json: every number of the report (per-set validation details left out: kept short)."""
+    short = {**payload, "studies": {key: {**study, "summary": {k: v for k, v in study["summary"].items()
+                                                               if k != "validation"}} if "summary" in study else study
+                                    for key, study in payload["studies"].items()}}
+    (out_dir / "paper.json").write_text(json.dumps(json_safe(short, drop_arrays=True), indent=1, allow_nan=False) + "\n")

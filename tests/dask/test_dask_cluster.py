@@ -46,7 +46,8 @@ def test_batched_study_on_the_cluster_equals_the_local_run(cluster, tmp_path):
                                    executor=executor)
     logs = {name: [json.loads(line) for line in (tmp_path / name / "evaluations.jsonl").read_text().splitlines()]
             for name in runs}
-    evaluations = {name: [{k: v for k, v in r.items() if k != "sim_wall_s"} for r in log if r["kind"] == "evaluation"]
+    evaluations = {name: [{k: v for k, v in r.items() if k not in ("sim_wall_s", "digest")} for r in log
+                          if r["kind"] == "evaluation"]
                    for name, log in logs.items()}
     assert [r["index"] for r in evaluations["dask"]] == list(range(8))
     assert evaluations["dask"] == evaluations["local"]

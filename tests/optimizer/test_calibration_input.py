@@ -119,6 +119,21 @@ def test_a_prior_of_the_same_feather_gives_its_best_strokes_first(tmp_path):
         SimPrior.load(tmp_path / "sim", feather={"morphology": "chordwise"}, space=stroke_space(3.0), maximize=True)
 
 
+@pytest.mark.parametrize("damage, message", [
+    (lambda lines: lines + [b"\xff\xfe{}"], "not UTF-8"),
+    (lambda lines: lines + [lines[1]], "repeats the evaluation index 0"),
+    (lambda lines: lines + [b"[1, 2]"], "not a log record"),
+    (lambda lines: [lines[0], lines[1].replace(b'"thrust_ratio": ', b'"thrust_ratio": 1')] + lines[2:], "digest"),
+])
+def test_a_damaged_prior_log_is_one_line(tmp_path, damage, message):
+    space = _simulated_study(tmp_path / "sim", "chordwise")
+    log = tmp_path / "sim" / "evaluations.jsonl"
+    log.write_bytes(b"\n".join(damage(log.read_bytes().splitlines())) + b"\n")
+    with pytest.raises(OptimizerError, match=message) as refused:
+        SimPrior.load(tmp_path / "sim", feather={"morphology": "chordwise"}, space=space, maximize=True)
+    assert "\n" not in str(refused.value) and str(refused.value).startswith("--prior")
+
+
 def test_calibration_recovers_coefficients_from_simulated_recordings(tmp_path):
     """The fit without real time: recordings as the emulator's plant would serve them (servo and
     feather strongly coupled, read every 4 ms, angle in 0.01°, 5 mN noise), so this runs on a
@@ -157,3 +172,45 @@ def test_calibration_recovers_coefficients_from_simulated_recordings(tmp_path):
     feather = load_scene(tmp_path / "calibrated.toml").to_dict()["blocks"]["feather"]["parameters"]
     assert feather["drag_coeff"] == pytest.approx(calibration.values["drag_coeff"], rel=1e-5)
     assert feather["oscillatory_drag"] == 0
+
+
+def test_one_absurd_sample_is_refused_and_nothing_is_written(tmp_path, capsys):
+    run = _write_run(tmp_path / "run.csv")
+    lines = run.read_text().splitlines()
+    t, angle, _ = lines[40].split(",")
+    lines[40] = f"{t},{angle},1e300"   # one corrupt load-cell sample
+    run.write_text("\n".join(lines) + "\n")
+    out = tmp_path / "cal"
+    err = _one_line_error(capsys, ["calibrate", str(run), "--window-s", "1", "--out", str(out),
+                                   "--set", "feather.morphology=plain"])
+    assert "1e+300 N" in err and "cannot be fitted" in err
+    assert not out.exists()
+
+
+def test_a_fit_that_is_not_finite_or_did_not_converge_is_no_calibration():
+    from dataclasses import replace
+
+    from featherstar.optimizer.calibration.fit import Calibration, Coefficient
+
+    good = Calibration((Coefficient("drag_coeff", 0.1, 10.0, 1.0, "1"),), {"drag_coeff": 1.5}, {"drag_coeff": 0.01},
+                       [[1.0]], {}, 0.002, 0.99, {}, 1.0, 20, 1.0, np.zeros(1), np.zeros((1, 1)), np.zeros((1, 1)))
+    assert good.failure() is None
+    assert "rms residual inf" in replace(good, rms_residual_N=math.inf).failure()
+    assert "R² nan" in replace(good, r_squared=math.nan).failure()
+    assert "drag_coeff sd inf" in replace(good, sd={"drag_coeff": math.inf}).failure()
+    assert "did not converge" in replace(good, converged=False, solver_message="max_nfev").failure()
+
+
+@pytest.mark.parametrize("content", [b"time,angle,thrust\n0,\xff\xfe,1\n", b"\xff\xfetime,angle\n", b"t,a\x00,f\n1,2,3\n"])
+def test_a_recording_that_is_not_utf8_text_is_one_line(tmp_path, capsys, content):
+    run = tmp_path / "run.csv"
+    run.write_bytes(content)
+    err = _one_line_error(capsys, ["calibrate", str(run), "--window-s", "1", "--out", str(tmp_path / "cal")])
+    assert str(run) in err
+
+
+def test_a_damaged_summary_beside_a_recording_is_one_line(tmp_path, capsys):
+    run = _write_run(tmp_path / "run.csv")
+    (tmp_path / "summary.json").write_bytes(b"\xff{")
+    err = _one_line_error(capsys, ["calibrate", str(run), "--out", str(tmp_path / "cal")])
+    assert "summary.json" in err

@@ -96,3 +96,22 @@ def test_cli_registers_paper():
     register(parser.add_subparsers(dest="command"))
     args = parser.parse_args(["paper", "--quick", "--out", "somewhere", "--workers", "1"])
     assert args.func.__name__ == "_paper_command" and args.quick and args.workers == 1
+
+
+def test_a_resumed_report_runs_only_the_missing_experiments_to_the_same_numbers(report, tmp_path):
+    """Experiments lost from tasks.jsonl (a kill): --resume runs those and reproduces the claims."""
+    log = report.parent / "tasks.jsonl"
+    lines = log.read_bytes().splitlines(keepends=True)
+    labels = [json.loads(line)["label"] for line in lines[1:]]
+    lost = {"study:chordwise-max", "robot:chordwise-best", "sweep:0", "fig5:plain"}
+    assert lost <= set(labels)
+    (tmp_path / "tasks.jsonl").write_bytes(b"".join(line for line, label in zip(lines, [None, *labels])
+                                                   if label not in lost))
+    resumed = generate_report(tmp_path, quick=True, progress=False, resolution=TINY, resume=True)
+    after = [json.loads(line)["label"] for line in (tmp_path / "tasks.jsonl").read_text().splitlines()[1:]]
+    assert sorted(after) == sorted(labels) and after[: len(labels) - len(lost)] == [l for l in labels if l not in lost]
+    original = {row["id"]: row["simulated"] for row in json.loads((report.parent / "paper.json").read_text())["claims"]}
+    again = {row["id"]: row["simulated"] for row in json.loads((resumed.parent / "paper.json").read_text())["claims"]}
+    assert again == original
+    with pytest.raises(Exception, match="already holds a run"):
+        generate_report(tmp_path, quick=True, progress=False, resolution=TINY)
