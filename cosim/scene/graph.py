@@ -189,6 +189,14 @@ def plan(scene: Scene, outputs: Sequence[str] | None = None) -> Plan:
                 metric_refs.append(PortRef.parse(text, f"metrics.{attr}"))
             except SceneError as exc:
                 problems.extend(exc.problems)
+    record_all_notes = []
+    if outputs is None and not requested and not metric_refs:
+        # A system from elsewhere (an SSP package without system outputs) names nothing to record:
+        # pruning would leave nothing to compute, so every block's every output is recorded.
+        requested = [PortRef(n, port) for n, rb in resolved.items() if not rb.records_only for port in rb.outputs]
+        if requested:
+            record_all_notes.append(f"no signals requested (no recorder, metrics or --record): recording every "
+                                    f"output of every block ({len(requested)} signals)")
     for ref in [*requested, *metric_refs]:
         check_output(ref, f"signal {ref}")
     problems.extend(scene.master.check())
@@ -245,7 +253,7 @@ def plan(scene: Scene, outputs: Sequence[str] | None = None) -> Plan:
                 while alias_of[alias_of[n]] != alias_of[n]:
                     alias_of[n] = alias_of[alias_of[n]]
     instantiate = [n for n in names if n in needed and alias_of[n] == n]
-    notes: list[str] = list(amplitude_notes) + unit_notes + held_notes
+    notes: list[str] = list(amplitude_notes) + record_all_notes + unit_notes + held_notes
     for n in names:
         if n in needed and alias_of[n] != n:
             notes.append(f"'{n}' is identical to '{alias_of[n]}' and driven by the same signals: integrated once")

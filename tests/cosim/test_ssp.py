@@ -151,6 +151,28 @@ def test_foreign_package_with_ssv_file_and_system_output_runs(mixed_ssp, tmp_pat
     assert np.array_equal(result["b.force_N"], reference["b.force_N"])
 
 
+def test_a_foreign_package_without_system_outputs_records_every_components_outputs(mixed_ssp, tmp_path):
+    """Nothing requested (no system output, recorder, metrics or --record): every output of every
+    component is recorded, and the run says so, rather than pruning the whole system away."""
+    ssd = FOREIGN_SSD.replace('<ssd:Connection startElement="b" startConnector="force_N" endConnector="force_out"/>', "")
+    ssd = ssd.replace('<ssd:Connector name="force_out" kind="output"><ssc:Real/></ssd:Connector>', "")
+    package = write_package(tmp_path / "silent.ssp", ssd, mixed_ssp, {"resources/params.ssv": FOREIGN_SSV})
+    master = {f"master.{key}": OSCILLATOR["master"][key] for key in ("rtol", "atol", "output_interval_s")}
+    result = run_scene(package, master)
+    scene = load_scene(package)
+    outputs = [f"{block}.{port}" for block in ("a", "b")
+               for port in read_model_description(scene.block(block).settings["fmu"]).modelVariables
+               for port in ([port.name] if port.causality == "output" else [])]
+    assert sorted(result.signals) == sorted(outputs) and "b.force_N" in outputs
+    assert sorted(result.info["instantiated"]) == ["a", "b"] and not result.info["pruned"]
+    assert any(note.startswith(f"no signals requested (no recorder, metrics or --record): recording every output "
+                               f"of every block ({len(outputs)} signals)") for note in result.info["notes"])
+    reference = run_scene(make_scene(OSCILLATOR, master={"t_end_s": 2.5}), {"b.coupling_stiffness_N_m": 50, "a.mass_kg": 2})
+    assert np.array_equal(result["b.force_N"], reference["b.force_N"])
+    # --record still records only what it names
+    assert list(run_scene(package, master, outputs=["a.position_m"]).signals) == ["a.position_m"]
+
+
 def mutated(mixed_ssp: Path, tmp_path: Path, old: str, new: str, count: int = 1) -> Path:
     ssd = zipfile.ZipFile(mixed_ssp).read(SSD_NAME).decode()
     assert old in ssd, old
