@@ -196,10 +196,17 @@ class _SystemReader:
         for component, values in parameters.items():
             if component in blocks and values:
                 blocks[component]["parameters"] = values
+        annotated = bool(extra)
         own_blocks = extra.pop("blocks", {})
+        # components that stand in for featherstar blocks (a stroke's FMU, for other tools):
+        # featherstar runs the blocks themselves
+        stand_ins = set(extra.pop("stand_ins", []))
         for name in own_blocks:
-            if name in blocks:
+            if name in blocks and name not in stand_ins:
                 self.refuse(f"block '{name}' of the {FEATHERSTAR_ANNOTATION} annotation has the name of an ssd:Component")
+        for name in sorted(stand_ins - set(own_blocks) - set(blocks)):
+            self.refuse(f"the {FEATHERSTAR_ANNOTATION} annotation's stand-in '{name}' is no ssd:Component of the "
+                        "system with a block of that name in the annotation")
         blocks.update(own_blocks)
         connections = list(extra.pop("connections", []))
         outputs = []
@@ -209,7 +216,8 @@ class _SystemReader:
                 outputs.append(mapped[0])
             elif mapped:
                 connections.append(mapped)
-        if outputs and OUTPUTS_RECORDER not in blocks:
+        # featherstar's own package names its recorders; the system outputs repeat their signals
+        if outputs and OUTPUTS_RECORDER not in blocks and not annotated:
             blocks[OUTPUTS_RECORDER] = {"kind": "recorder", "signals": outputs}
         data.update(extra)
         data["blocks"] = blocks
@@ -362,7 +370,8 @@ class _SystemReader:
                 self.refuse(f"{label} names element '{element}', which is not a component of the system")
                 return None
         src = self._endpoint(start, own, connectors, "input", label)
-        if end[0] is None and src and end[1].partition(".")[0] not in own and connectors.get(end[1]) == "output":
+        fed = end[1].partition(".")[0]   # a featherstar block the connector leads to, or the source itself
+        if end[0] is None and src and (fed not in own or fed == start[0]) and connectors.get(end[1]) == "output":
             return (src,)  # a system output: recorded
         dst = self._endpoint(end, own, connectors, "output", label)
         return f"{src} -> {dst}" if src and dst else None

@@ -37,7 +37,8 @@ OVERRIDES = {"b.coupling_stiffness_N_m": 50, "source.u": 3.0, "g.offset": -0.5}
 
 @pytest.fixture(scope="module")
 def mixed_ssp(tmp_path_factory) -> Path:
-    return export_ssp(make_scene(OSCILLATOR, **MIXED), tmp_path_factory.mktemp("ssp") / "mixed.ssp", OVERRIDES)
+    return export_ssp(make_scene(OSCILLATOR, **MIXED), tmp_path_factory.mktemp("ssp") / "mixed.ssp", OVERRIDES,
+                      system_outputs=True)
 
 
 def assert_identical(a, b) -> None:
@@ -47,16 +48,34 @@ def assert_identical(a, b) -> None:
         assert np.array_equal(a[name], b[name]), name
 
 
+def assert_same_scene(back, original) -> None:
+    """The scene read back from a package is the one exported: its featherstar blocks (stand-ins
+    are the blocks again, not their FMUs), connections and settings; FMU blocks are FMU files."""
+    a, b = back.to_dict(), original.to_dict()
+    assert sorted(a["connections"]) == sorted(b["connections"])
+    for key in ("master", "metrics", "aliases", "units"):
+        assert a.get(key) == b.get(key), key
+    assert set(a["blocks"]) == set(b["blocks"])
+    for name, table in b["blocks"].items():
+        if table["kind"] != "fmu":
+            assert a["blocks"][name] == table, name
+
+
 def test_exported_package_is_standard_ssp_and_runs_back_identically(mixed_ssp):
     archive = zipfile.ZipFile(mixed_ssp)
-    assert sorted(archive.namelist()) == [SSD_NAME, "resources/a.fmu", "resources/b.fmu", "resources/g.fmu"]
+    assert sorted(archive.namelist()) == [SSD_NAME, *(f"resources/{n}.fmu" for n in ("a", "b", "g", "source"))]
     ssd = archive.read(SSD_NAME).decode()
     assert f'xmlns:ssd="{NS["ssd"]}"' in ssd and 'type="application/x-fmu-sharedlibrary"' in ssd
-    assert '<ssd:Connector name="source.u" kind="input">' in ssd  # featherstar block -> FMU input
-    assert '<ssd:Connection startConnector="source.u" endElement="g" endConnector="u" />' in ssd
-    assert '<ssd:Connection startElement="g" startConnector="y" endConnector="scale.u" />' in ssd
+    # the constant that drives an FMU input is an FMU of its own, set by the override
+    assert '<ssd:Connection startElement="source" startConnector="u" endElement="g" endConnector="u" />' in ssd
+    assert re.search(r'<ssv:Parameter name="u_value">\s*<ssv:Real value="3.0" />', ssd)
+    assert '<ssd:Connection startElement="g" startConnector="y" endConnector="scale.u" />' in ssd  # -> a gain
+    # recorded signals of components are system outputs
+    assert '<ssd:Connection startElement="a" startConnector="position_m" endConnector="a.position_m" />' in ssd
+    assert '<ssd:DefaultExperiment startTime="0.0" stopTime="2.0" />' in ssd
     assert re.search(r'<ssv:Parameter name="coupling_stiffness_N_m">\s*<ssv:Real value="50.0" />', ssd)
-    for name in ("a", "b", "g"):
+    assert_same_scene(load_scene(mixed_ssp), make_scene(OSCILLATOR, **MIXED).with_overrides(OVERRIDES))
+    for name in ("a", "b", "g", "source"):
         archive.extract(f"resources/{name}.fmu", mixed_ssp.parent)
         assert validate_fmu(str(mixed_ssp.parent / "resources" / f"{name}.fmu")) == []
 
@@ -76,6 +95,14 @@ def test_testbed_round_trip_on_fmi3_and_fmi2(tmp_path):
         scene = load_scene(package)
         versions = {read_model_description(scene.block(b).settings["fmu"]).fmiVersion for b in ("servo", "feather")}
         assert versions == {f"{fmi_version}.0"}
+        # FMUs only for other tools: the stroke and the still water are components too; the run
+        # length, given in periods, is periods x period there and stays `periods` here
+        ssd = zipfile.ZipFile(package).read(SSD_NAME).decode()
+        assert '<ssd:DefaultExperiment startTime="0.0" stopTime="1.5" />' in ssd
+        assert 'endElement=' in ssd and "startConnector=\"controller.angle_rad\"" not in ssd
+        assert all(f'<ssd:Component name="{n}"' in ssd for n in ("controller", "tank", "servo", "feather"))
+        assert scene.master.periods == 1 and scene.master.t_end_s == 0.0
+        assert_same_scene(scene, load_scene("testbed").with_overrides(short))
         back = run_scene(package)
         if fmi_version == 3:
             assert_identical(direct, back)
@@ -203,10 +230,12 @@ def mutated(mixed_ssp: Path, tmp_path: Path, old: str, new: str, count: int = 1)
      "ssd:ParameterMapping in the ssd:ParameterBinding of ssd:Component 'a'"),
     ('<fs:Scene format="json">{', '<fs:Scene format="json">{{',
      "ssc:Annotation 'org.featherstar.scene': fs:Scene is not valid JSON"),
-    ('startConnector="source.u"', 'startConnector="elsewhere.u"',
-     "ssd:Connection elsewhere.u -> g.u: the system has no input connector 'elsewhere.u'"),
-    ("</ssd:System>", '</ssd:System><ssd:DefaultExperiment startTime="1.0" stopTime="3.0" />',
+    ('endConnector="scale.u"', 'endConnector="elsewhere.u"',
+     "ssd:Connection g.y -> elsewhere.u: the system has no output connector 'elsewhere.u'"),
+    ('<ssd:DefaultExperiment startTime="0.0"', '<ssd:DefaultExperiment startTime="1.0"',
      "ssd:DefaultExperiment startTime = 1.0: featherstar runs start at t = 0"),
+    ('"stand_ins": [\n  "source"\n ]', '"stand_ins": [\n  "nobody"\n ]',
+     "stand-in 'nobody' is no ssd:Component of the system"),
     ("<ssd:Elements>", "<ssd:SignalDictionaries/><ssd:Elements>",
      "ssd:SignalDictionaries in ssd:System 'oscillator': featherstar cannot map it"),
 ])
