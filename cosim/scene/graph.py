@@ -297,7 +297,8 @@ def _check_coupling(p: Plan) -> list[str]:
             problems.append(f"block '{n}' is {why}: it cannot be integrated in one ODE with the others "
                             "(master.coupling = strong); use master.coupling = jacobi or gauss-seidel")
         if rb.fmu_info is not None and not (rb.fmu_info.has_me or rb.fmu_info.has_cs):
-            problems.append(f"block '{n}': the FMU offers neither Model Exchange nor Co-Simulation")
+            problems.append(f"block '{n}': the FMU offers neither <ModelExchange> nor <CoSimulation> "
+                            "(FMI 3.0 <ScheduledExecution> is not supported)")
         if master.coupling != "strong" and master.adaptive and not rb.can_rollback:
             problems.append(f"block '{n}' cannot save and restore its state, which the adaptive macro step "
                             "needs to reject a step; set master.adaptive = false")

@@ -4,6 +4,7 @@ outputs runs; what featherstar cannot map is refused naming the element."""
 from __future__ import annotations
 
 import re
+import xml.etree.ElementTree as ET
 import zipfile
 from pathlib import Path
 
@@ -200,6 +201,48 @@ def test_a_foreign_package_without_system_outputs_records_every_components_outpu
     assert list(run_scene(package, master, outputs=["a.position_m"]).signals) == ["a.position_m"]
 
 
+def _with_connector_units(mixed_ssp: Path, path: Path, units: dict[tuple[str, str], str], transform: str = "") -> Path:
+    """The package with units on component connectors {(component, connector): unit} and, with
+    `transform`, that child on the connection a.position_m -> b.other_position_m."""
+    root = ET.fromstring(zipfile.ZipFile(mixed_ssp).read(SSD_NAME))
+    for component in root.iterfind(".//ssd:Component", NS):
+        for connector in component.iterfind("ssd:Connectors/ssd:Connector", NS):
+            unit = units.get((component.get("name"), connector.get("name")))
+            if unit:
+                connector[0].set("unit", unit)
+    for connection in root.iterfind(".//ssd:Connection", NS):
+        if transform and (connection.get("startElement"), connection.get("endConnector")) == ("a", "other_position_m"):
+            connection.append(ET.fromstring(transform))
+    return write_package(path, ET.tostring(root, encoding="unicode"), mixed_ssp)
+
+
+def test_a_linear_transformation_between_components_is_a_gain_block(mixed_ssp, tmp_path):
+    """y = factor x + offset on a.position_m -> b.other_position_m runs as a featherstar gain
+    between them: the same numbers as the scene with that gain written by hand."""
+    transform = f'<ssc:LinearTransformation xmlns:ssc="{NS["ssc"]}" factor="0.5" offset="0.01"/>'
+    package = _with_connector_units(mixed_ssp, tmp_path / "linear.ssp", {}, transform)
+    scene = load_scene(package)
+    assert scene.block("transform_0").settings.to_plain() == {"gain": 0.5, "offset": 0.01, "unit_in": "", "unit_out": ""}
+    by_hand = dict(MIXED, connections=[c for c in MIXED["connections"] if c != "a.position_m -> b.other_position_m"]
+                   + ["a.position_m -> transform_0.u", "transform_0.y -> b.other_position_m"],
+                   blocks={**MIXED["blocks"], "transform_0": {"kind": "gain", "gain": 0.5, "offset": 0.01,
+                                                             "unit_in": "", "unit_out": ""}})
+    back = run_scene(package)
+    assert_identical(back, run_scene(make_scene(OSCILLATOR, **by_hand), OVERRIDES))
+    assert any("units not checked" in note and "transform_0.y -> b.other_position_m" in note
+               for note in back.info["notes"])
+
+
+def test_connectors_with_different_units_are_refused_and_equal_ones_accepted(mixed_ssp, tmp_path):
+    same = _with_connector_units(mixed_ssp, tmp_path / "same.ssp", {("a", "position_m"): "m", ("b", "other_position_m"): "m"})
+    load_scene(same)
+    differ = _with_connector_units(mixed_ssp, tmp_path / "differ.ssp",
+                                   {("a", "position_m"): "m", ("b", "other_position_m"): "mm"})
+    with pytest.raises(SceneError, match=r"ssd:Connection a.position_m -> b.other_position_m: its connectors' "
+                                         r"units differ \('m' -> 'mm'\); SSP tools convert"):
+        load_scene(differ)
+
+
 def mutated(mixed_ssp: Path, tmp_path: Path, old: str, new: str, count: int = 1) -> Path:
     ssd = zipfile.ZipFile(mixed_ssp).read(SSD_NAME).decode()
     assert old in ssd, old
@@ -209,8 +252,18 @@ def mutated(mixed_ssp: Path, tmp_path: Path, old: str, new: str, count: int = 1)
 @pytest.mark.parametrize("old, new, message", [
     ('<ssd:Connection startElement="a" startConnector="position_m" endElement="b" endConnector="other_position_m" />',
      '<ssd:Connection startElement="a" startConnector="position_m" endElement="b" endConnector="other_position_m">'
-     '<ssc:LinearTransformation factor="2"/></ssd:Connection>',
-     "ssc:LinearTransformation on the ssd:Connection a.position_m -> b.other_position_m"),
+     '<ssc:BooleanMappingTransformation/></ssd:Connection>',
+     "ssc:BooleanMappingTransformation on the ssd:Connection a.position_m -> b.other_position_m: featherstar maps "
+     "only ssc:LinearTransformation"),
+    ('<ssd:Connection startElement="g" startConnector="y" endConnector="scale.u" />',
+     '<ssd:Connection startElement="g" startConnector="y" endConnector="scale.u"><ssc:LinearTransformation/>'
+     '</ssd:Connection>',
+     "ssc:LinearTransformation on the ssd:Connection g.y -> scale.u: featherstar maps only "
+     "ssc:LinearTransformation (transformations between components only)"),
+    ('<ssd:Connection startElement="a" startConnector="position_m" endElement="b" endConnector="other_position_m" />',
+     '<ssd:Connection startElement="a" startConnector="position_m" endElement="b" endConnector="other_position_m">'
+     '<ssc:LinearTransformation factor="inf"/></ssd:Connection>',
+     "ssc:LinearTransformation on the ssd:Connection a.position_m -> b.other_position_m: factor = inf"),
     ('endElement="b" endConnector="other_velocity_m_s"', 'endElement="nobody" endConnector="other_velocity_m_s"',
      "ssd:Connection a.velocity_m_s -> nobody.other_velocity_m_s names element 'nobody', which is not a component"),
     ('endElement="b" endConnector="other_velocity_m_s"', 'endElement="b"',
