@@ -105,26 +105,29 @@ def test_a_model_exchange_fmu_under_gauss_seidel_is_as_accurate_as_under_strong_
 @pytest.mark.parametrize("coupling,interface,step_s", [
     ("strong", None, 0.03), ("jacobi", "me", 0.03), ("gauss-seidel", "me", 0.03),
     ("jacobi", "cs", 0.05), ("gauss-seidel", "cs", 0.05)])
+@pytest.mark.parametrize("max_count", [1, 2, 4])
 def test_an_fmu_asking_to_terminate_ends_the_run_normally_at_that_time(c_fmu, version, coupling, interface,
-                                                                       step_s):
+                                                                       step_s, max_count):
     """terminateSimulation is the model's way to say it is done (ME: in the event update; CS: FMI
-    3.0 doStep's out-argument, FMI 2.0 fmi2Discard + fmi2Terminated): the run ends at t = 0.5 s
-    without an error, the data are kept up to and including that time, the summary names who
-    ended it and when."""
+    3.0 doStep's out-argument, FMI 2.0 fmi2Discard + fmi2Terminated): the run ends at
+    t = max_count * period without an error, the data are kept up to and including that time, the
+    summary names who ended it and when."""
+    t_stop = max_count * PERIOD
     scene = _scene(c_fmu("events", version), coupling, interface, step_s=step_s).with_overrides(
-        {"clock.max_count": 2})
+        {"clock.max_count": max_count})
     result = run_scene(scene)
     assert result.complete and "error" not in result.summary
     assert result.summary["terminated_by"] == "clock"
-    assert result.summary["terminated_at_s"] == pytest.approx(0.5, abs=1e-12)
+    assert result.summary["terminated_at_s"] == pytest.approx(t_stop, abs=1e-12)
     assert "terminated_note" not in result.summary
     t = result.time
-    assert t[-1] == pytest.approx(0.5, abs=1e-12) and np.all(np.diff(t) > 0)
-    assert result["clock.counter"][-1] == 2   # the values after the terminating event
+    assert t[-1] == pytest.approx(t_stop, abs=1e-12) and np.all(np.diff(t) > 0)
+    assert result["clock.counter"][-1] == max_count   # the values after the terminating event
     assert np.array_equal(result["clock.counter"], np.floor(t / PERIOD + 1e-9).astype(np.int32))
     if not (coupling == "gauss-seidel" and interface == "cs"):  # GS holds the counter after the step's event
         assert np.max(np.abs(result["integ.x"] - _integral_of_counter(t))) < 1e-9
-    assert "ended by" in summary_table(result.summary) and "t=0.5 s of 1.1 s" in summary_table(result.summary)
+    assert f"ended by                       clock (asked to terminate) at t={t_stop:g} s of 1.1 s" in \
+        summary_table(result.summary)
 
 
 @pytest.mark.parametrize("version", [2, 3])
