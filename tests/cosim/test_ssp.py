@@ -91,8 +91,9 @@ def test_exported_package_is_standard_ssp_and_runs_back_identically(mixed_ssp):
 def test_testbed_round_trip_on_fmi3_and_fmi2(tmp_path):
     short = {"feather.morphology": "plain", "master.periods": 1, "metrics.settle_periods": 0}
     direct = run_scene("testbed", short)
-    for fmi_version in (3, 2):
-        package = export_ssp(load_scene("testbed"), tmp_path / f"testbed-fmi{fmi_version}.ssp", short, fmi_version=fmi_version)
+    for fmi_version, system_outputs in ((3, False), (2, False), (3, True)):
+        package = export_ssp(load_scene("testbed"), tmp_path / f"testbed-fmi{fmi_version}-{system_outputs}.ssp", short,
+                             fmi_version=fmi_version, system_outputs=system_outputs)
         scene = load_scene(package)
         versions = {read_model_description(scene.block(b).settings["fmu"]).fmiVersion for b in ("servo", "feather")}
         assert versions == {f"{fmi_version}.0"}
@@ -101,6 +102,9 @@ def test_testbed_round_trip_on_fmi3_and_fmi2(tmp_path):
         ssd = zipfile.ZipFile(package).read(SSD_NAME).decode()
         assert '<ssd:DefaultExperiment startTime="0.0" stopTime="1.5" />' in ssd
         assert 'endElement=' in ssd and "startConnector=\"controller.angle_rad\"" not in ssd
+        # the recorded signals as system outputs, the stroke's too (its own connector, not a connection)
+        assert ('<ssd:Connection startElement="controller" startConnector="angle_rad" '
+                'endConnector="controller.angle_rad" />' in ssd) == system_outputs
         assert all(f'<ssd:Component name="{n}"' in ssd for n in ("controller", "tank", "servo", "feather"))
         assert scene.master.periods == 1 and scene.master.t_end_s == 0.0
         assert_same_scene(scene, load_scene("testbed").with_overrides(short))
