@@ -59,7 +59,10 @@ def libcosim_run(package: Path, step_s: float, n_steps: int, signals: list[str])
     start is not observed: the first row is after one step)."""
     _peer("libcosimpy.CosimExecution")
     from libcosimpy.CosimExecution import CosimExecution
+    from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
     from libcosimpy.CosimObserver import CosimObserver
+
+    log_output_level(CosimLogLevel.WARNING)   # its default prints every FMU load
 
     execution = CosimExecution.from_ssp_file(str(package), step_size=round(step_s * 1e9))
     observer = CosimObserver.create_last_value()
