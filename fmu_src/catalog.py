@@ -12,11 +12,15 @@ from .feather import feather_model
 from .model import Model
 from .robot import robot_model
 from .servo import servo_model
+from .stroke_source import constant_source_model, stroke_source_model
 
 _BUILDERS: dict[str, tuple[Callable[..., Model], tuple[str, ...]]] = {
     "feather": (feather_model, ("morphology", "n_units", "root_support")),
     "servo": (servo_model, ()),
     "robot": (robot_model, ()),
+    # signal sources: the SSP export's FMUs of a scene's stroke and constant blocks
+    "stroke_source": (stroke_source_model, ()),
+    "constant_source": (constant_source_model, ("outputs",)),
 }
 
 MODELS: dict[str, Callable[[], Model]] = {
@@ -29,7 +33,8 @@ MODELS: dict[str, Callable[[], Model]] = {
 
 
 def build_model(kind: str, options: Mapping[str, object] | None = None) -> Model:
-    """The model of `kind` ("feather", "servo", "robot") with the given build options."""
+    """The model of `kind` ("feather", "servo", "robot", "stroke_source", "constant_source")
+    with the given build options."""
     if kind not in _BUILDERS:
         raise ModelError(f"unknown model kind '{kind}'; known: {', '.join(_BUILDERS)}")
     builder, allowed = _BUILDERS[kind]

@@ -353,15 +353,28 @@ def _patch_model_description(text: str, model: Model, identifier: str) -> str:
     root.insert(position + 2, log_categories)
 
     ranges = {p.name: p for p in model.parameters}
+    starts = _start_values(model)
     for variable in root.iter("Float64"):
         name = variable.get("name")
         variable.set("unit", units[name])
         variable.set("description", descriptions[name])
+        if name in starts:
+            # CasADi writes starts with 6 significant digits; the binary holds the exact double.
+            # An importer that sets the declared start (every SSP tool does) must not move it.
+            variable.set("start", starts[name])
         if name in ranges:
             variable.set("min", repr(ranges[name].minimum))
             variable.set("max", repr(ranges[name].maximum))
     ET.indent(root, space="    ")
     return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode")
+
+
+def _start_values(model: Model) -> dict[str, str]:
+    """The start of every state, input and parameter, as the shortest text that parses back to
+    the same double (`repr`)."""
+    values = {v.name: v.start for v in (*model.states, *model.inputs)}
+    values.update({p.name: p.default for p in model.parameters})
+    return {name: repr(float(value)) for name, value in values.items()}
 
 
 def _variable_metadata(model: Model, root: ET.Element) -> tuple[dict[str, str], dict[str, str]]:

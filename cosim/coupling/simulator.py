@@ -137,7 +137,7 @@ class Simulator:
 
     def advance_to(self, t_s: float) -> float:
         """Advance to t_s (at most the plan's end); returns the time reached (earlier only if a
-        block asked to terminate). Raises StepError naming block and time on a failure."""
+        block asked to terminate: see `ended`). Raises StepError naming block and time on a failure."""
         if not self.initialized or self.closed:
             raise StepError("master", self.context.t, "advance_to() before initialize() or after close()",
                             cause="call initialize() first; a closed simulator cannot continue")
@@ -151,6 +151,12 @@ class Simulator:
     @property
     def t(self) -> float:
         return self.context.t
+
+    @property
+    def ended(self) -> tuple[str, float] | None:
+        """(the block(s) that asked to terminate, the time the run ended), when a block ended the
+        run before its end (FMI terminateSimulation: the model is done; not an error)."""
+        return self.coupling.ended if self.initialized else None
 
     def close(self) -> None:
         """Close every started block (in start order; a hardware servo commands its safe

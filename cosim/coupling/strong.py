@@ -66,14 +66,9 @@ class OdeGroup:
                                   rtol=rtol, atol=atol,
                                   max_step=max_step, n_roots=self.n_events,
                                   roots=self._roots if self.n_events else None)
-        self.terminated_by = ""  # the unit that asked to end the simulation (terminateSimulation)
-
-    def check_not_terminated(self, t: float, t_end: float | None = None) -> None:
-        """An FMU that asked to terminate (before t_end, if given) ends the run with a StepError,
-        as a co-simulation FMU's doStep does: the data up to t are kept, never called complete."""
-        if self.terminated_by and (t_end is None or t < t_end - 1e-12 * max(1.0, abs(t_end))):
-            raise StepError(self.terminated_by, t, "the FMU asked to terminate the simulation",
-                            function="event update", cause="the model reached the end of its validity")
+        # the unit that asked to end the simulation (terminateSimulation): the model's normal way
+        # to say it is done, so the run ends there without an error
+        self.terminated_by = ""
 
     def _initial_states(self) -> list[float]:
         x = (c_double * self.n)()
@@ -340,6 +335,7 @@ class StrongCoupling:
         self.k = 0
         self.terminated = False
         self.check = system.output_checker(self.units)
+        self.last_output_t = -math.inf
 
     def initialize(self, t0: float, t_end: float) -> None:
         """Build the schedules and the solver over the started units; record the start."""
@@ -364,7 +360,9 @@ class StrongCoupling:
         if group.discrete_units and group.discrete_inputs_pending(t0):
             # discrete inputs are taken in event mode before the start is recorded (values after the event)
             self.terminated = group.handle_event(t0)
-            group.check_not_terminated(t0, t_end)
+        asked = [u.name for u in self.units if u.terminated_at_s is not None]   # at initialization
+        if asked and not self.terminated:
+            self.terminated, group.terminated_by = True, asked[0]
         n = int(math.floor((t_end - t0) / m.output_interval_s + 1e-9))
         out_times = t0 + m.output_interval_s * np.arange(n + 1)
         if out_times[-1] < t_end - 1e-12:
@@ -375,6 +373,8 @@ class StrongCoupling:
         while self.k < len(out_times) and out_times[self.k] <= t0 + eps:   # the start's outputs
             self._on_output(out_times[self.k], group.cv.y_address)
             self.k += 1
+        if self.terminated:
+            self.k = len(out_times)
         self.recording.check_rows()
         self.context.stats["states"] = 0 if group.dummy else group.n
         self.context.stats.setdefault("integrate_s", 0.0)
@@ -417,6 +417,7 @@ class StrongCoupling:
                 op()
         self.check(t)
         self.recording.record(t)
+        self.last_output_t = t
         if len(self.recording.rows) % 256 == 0:
             self.recording.tick(t)
 
@@ -427,7 +428,8 @@ class StrongCoupling:
         t_wall = time.perf_counter()
         try:
             self.k, self.terminated = group.integrate(t_target, self.t_end, self.out_times, self.k, self._on_output)
-            group.check_not_terminated(group.cv.t, self.t_end)
+            if self.terminated and self.last_output_t < group.cv.t:
+                self._on_output(group.cv.t, group.cv.y_address)   # the run's last point is where it ended
         except CVodeError as exc:
             raise group.diagnose(exc) from None
         finally:
@@ -435,6 +437,11 @@ class StrongCoupling:
             self.context.stats["integrate_s"] += time.perf_counter() - t_wall
         self.recording.check_rows()
         return group.cv.t
+
+    @property
+    def ended(self) -> tuple[str, float] | None:
+        """(the unit that asked to terminate, the time the run ended there), or None."""
+        return (self.group.terminated_by, self.group.cv.t) if self.terminated and self.group else None
 
     def get_state(self) -> tuple[float, list[float], list]:
         """The solver's state and every unit's (ME FMUs: their FMU state); restoring restarts

@@ -54,10 +54,11 @@ class MeStepper:
             g.cv.reinit(t)  # the inputs jumped at the communication point
         self._held = held
         try:
-            g.integrate(t + h, t + h, np.empty(0), 0, lambda _t: None)
-            g.check_not_terminated(g.cv.t)
+            _, terminate = g.integrate(t + h, t + h, np.empty(0), 0, lambda _t: None)
         except CVodeError as exc:
             raise g.diagnose(exc) from None
+        if terminate and self.unit.terminated_at_s is None:
+            self.unit.terminated_at_s = g.cv.t
         self.unit.set_time(t + h)
         if g.stateful:
             self.unit.set_states(g.cv.y_address)
@@ -115,6 +116,8 @@ class WeakCoupling:
         self.check = system.output_checker(self.units)
         self.t = 0.0
         self.n_steps = self.n_rejected = 0
+        # (the units that asked to terminate, the communication point where the run ended)
+        self.ended: tuple[str, float] | None = None
 
     def initialize(self, t0: float, t_end: float) -> None:
         system, context, m, units = self.system, self.context, self.m, self.units
@@ -143,6 +146,13 @@ class WeakCoupling:
         self.t = t0
         self.scale = {u.name: [abs(u.inbuf[i]) for i in range(len(u.input_names))] for u in self.stepped}
         self.estimated = {u.name: continuous_inputs(system, u) for u in self.stepped}
+        self._check_terminated(t0)
+
+    def _check_terminated(self, t: float) -> None:
+        """A unit that asked to terminate ends the run at this communication point, normally."""
+        asked = [u.name for u in self.units if u.terminated_at_s is not None]
+        if asked:
+            self.ended = (", ".join(asked), t)
 
     def consistent(self, t: float) -> None:
         """Every input and output at t; ME units take changed discrete inputs in event mode there
@@ -176,7 +186,7 @@ class WeakCoupling:
         t, h = self.t, self.h
         eps = 1e-12 * max(1.0, abs(t_end))
         gs = m.coupling == "gauss-seidel"
-        while t < t_target - eps:
+        while t < t_target - eps and self.ended is None:
             if self.pace is not None:
                 self.pace(t, h)
             h_try = min(h, t_end - t)
@@ -254,6 +264,7 @@ class WeakCoupling:
             recording.record(t)
             if self.n_steps % 256 == 0:
                 recording.tick(t)
+            self._check_terminated(t)
         context.stats.update({"macro_steps": self.n_steps, "rejected_steps": self.n_rejected})
         recording.check_rows()
         return t
@@ -269,6 +280,7 @@ class WeakCoupling:
             s.set_state(states[n])
         self.t, self.h = t, h
         self.scale = {k: list(v) for k, v in scale.items()}
+        self.ended = None   # restored units forget a later request to terminate
         self.consistent(t)
 
     def free_state(self, state: tuple) -> None:

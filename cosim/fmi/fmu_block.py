@@ -15,6 +15,7 @@ Model Exchange discrete inputs can be set only in event mode: the setters leave 
 from __future__ import annotations
 
 import ctypes
+import math
 import shutil
 import tempfile
 from collections import deque
@@ -65,7 +66,7 @@ class FmuUnit(Unit):
         self._own_unzip = False
         self.fmu: Any = None
         self._time_event: float | None = None
-        self._terminated = False
+        self.terminated_at_s: float | None = None
         self._vr_in = (c_uint * max(len(self.input_names), 1))(*[info.vr[n] for n in self.input_names])
         self._vr_out = (c_uint * max(len(self.output_names), 1))(*[info.vr[n] for n in self.output_names])
         self.port_in = [info.port_vars[n] for n in self.input_names]
@@ -155,7 +156,7 @@ class FmuUnit(Unit):
             self._call("fmi2EnterInitializationMode", fmu.enterInitializationMode)
             self._call("fmi2ExitInitializationMode", fmu.exitInitializationMode)
         if self.mode == "me":
-            self._event_iteration()
+            self._event_iteration()  # a request to terminate here ends the run at t0
             self._call("enterContinuousTimeMode", fmu.enterContinuousTimeMode)
 
     def _log3(self, env, status, category, message) -> None:
@@ -379,7 +380,10 @@ class FmuUnit(Unit):
             raise self._fail("GetEventIndicators", self.t, status)
 
     def completed_integrator_step(self) -> tuple[bool, bool]:
-        return self._call("CompletedIntegratorStep", lambda: self.fmu.completedIntegratorStep())
+        enter, terminate = self._call("CompletedIntegratorStep", lambda: self.fmu.completedIntegratorStep())
+        if terminate:
+            self.terminated_at_s = self.t
+        return enter, terminate
 
     def _event_iteration(self) -> tuple[bool, float | None, bool]:
         fmu = self.fmu
@@ -398,6 +402,8 @@ class FmuUnit(Unit):
             raise StepError(self.name, self.t, "event iteration did not converge in 1000 rounds",
                             function="UpdateDiscreteStates", cause="chattering discrete states")
         self._time_event = next_time
+        if terminate and self.terminated_at_s is None:
+            self.terminated_at_s = self.t
         return changed, next_time, terminate
 
     def event_update(self) -> tuple[bool, float | None, bool]:
@@ -419,20 +425,51 @@ class FmuUnit(Unit):
             status = self._do_step3(self._inst, t, h, False, addr, addr + 1, addr + 2,
                                     ctypes.addressof(self._last_t))
             if status <= 1 and f[1]:
-                raise StepError(self.name, t + h, "the FMU asked to terminate the simulation",
-                                function="fmi3DoStep", cause="the model reached the end of its validity")
+                # the model's normal way to say it is done: the master ends the run here
+                self.terminated_at_s = self._stopped_at(t, h, self._last_t.value)
         else:
             status = self._do_step2(self._inst, t, h, 0)
+            if status == 2 and self._fmi2_terminated():
+                self.terminated_at_s = self._stopped_at(t, h, self._fmi2_last_successful_time(t + h))
+                status = 0
         if status > 1:
             raise self._fail("fmi3DoStep" if self.fmi3 else "fmi2DoStep", t, status,
                              cause="the FMU's integrator failed (step too large for a stiff or blowing-up "
                              "model, or invalid inputs)")
         self.t = t + h
 
+    def _fmi2_terminated(self) -> bool:
+        """After fmi2Discard: did the slave stop for good (fmi2Terminated) rather than reject
+        the step? An FMU without fmi2GetBooleanStatus rejected it."""
+        from fmpy.fmi2 import fmi2Terminated
+
+        said = list(self.log_lines)   # a refused status query must not bury the discard's reason
+        try:
+            return bool(self.fmu.getBooleanStatus(fmi2Terminated))
+        except Exception:
+            return False
+        finally:
+            self.log_lines.clear()
+            self.log_lines.extend(said)
+
+    def _fmi2_last_successful_time(self, default: float) -> float:
+        from fmpy.fmi2 import fmi2LastSuccessfulTime
+
+        try:
+            return float(self.fmu.getRealStatus(fmi2LastSuccessfulTime))
+        except Exception:
+            return default
+
+    @staticmethod
+    def _stopped_at(t: float, h: float, reported: float) -> float:
+        """Where the FMU says it stopped within [t, t + h]; a value outside (or none) means t + h."""
+        return reported if math.isfinite(reported) and t <= reported <= t + h else t + h
+
     def get_state(self) -> Any:
         return self._call("GetFMUState", lambda: self.fmu.getFMUState() if self.fmi3 else self.fmu.getFMUstate())
 
     def set_state(self, state: Any) -> None:
+        self.terminated_at_s = None  # back before any request to terminate
         self._call("SetFMUState", lambda: self.fmu.setFMUState(state) if self.fmi3 else self.fmu.setFMUstate(state))
 
     def free_state(self, state: Any) -> None:

@@ -74,6 +74,9 @@ class Unit:
     n_events = 0
     needs_completed_step = False
     has_discrete_inputs = False  # ME FMUs: inputs settable in event mode only (cosim.strong)
+    # set (to the time) when the unit asked to end the run (FMI terminateSimulation): the
+    # coupling stops there normally; a restored earlier state clears it
+    terminated_at_s: float | None = None
 
     def __init__(self, name: str, input_names: Sequence[str], output_names: Sequence[str]) -> None:
         self.name = name

@@ -200,6 +200,12 @@ class Constant:
         """A new value from outside the scene (Simulator.write): a command, the flow speed."""
         self.values[name] = float(value)
 
+    def fmu_stand_in(self) -> tuple[str, dict[str, Any], dict[str, float]]:
+        """The FMU that stands in for this block in an SSP package (featherstar.cosim.ssp.export):
+        (catalog model kind, build options, parameter values)."""
+        units = {name: port.unit for name, port in self.outputs.items()}
+        return "constant_source", {"outputs": units}, {f"{name}_value": v for name, v in self.values.items()}
+
     def do_step(self, t_s: float, h_s: float) -> None:
         pass
 

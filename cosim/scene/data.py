@@ -13,6 +13,9 @@ everything that changes during a run lives in the master's per-run context. A sc
     [aliases]                              # optional: one --set name for several blocks
     feather = ["feather_left", "feather_right"]
 
+    [units]                                # optional: connections whose two declared units
+    waive = ["vendor.y -> servo.setpoint_rad"]   # differ but whose values agree (checked by hand)
+
     [master]                               # see MasterSpec for every key and its default
     coupling = "strong"                    # strong | jacobi | gauss-seidel
     step_s = 1e-3
@@ -191,6 +194,7 @@ class Scene:
     metrics: MetricsSpec = MetricsSpec()
     aliases: FrozenMap = field(default_factory=FrozenMap)
     source: str = ""
+    unit_waivers: tuple[Connection, ...] = ()   # [units] waive: connections not unit-checked
 
     def block(self, name: str) -> BlockSpec:
         for b in self.blocks:
@@ -245,6 +249,8 @@ class Scene:
             "description": self.description,
             "connections": [str(c) for c in self.connections],
             "aliases": self.aliases.to_plain(),
+            # only when given, so that the fingerprints of scenes without waivers do not move
+            **({"units": {"waive": [str(c) for c in self.unit_waivers]}} if self.unit_waivers else {}),
             "master": dataclasses.asdict(self.master),
             "metrics": dataclasses.asdict(self.metrics),
             "blocks": {
@@ -297,7 +303,7 @@ def scene_from_dict(data: Mapping[str, Any], *, name: str = "", source: str = ""
     """Build a Scene from parsed TOML (or an equivalent dict). Checks the file's shape; the
     wiring is checked by `featherstar.cosim.scene.graph.validate` (before anything is loaded)."""
     problems: list[str] = []
-    known = {"name", "description", "connections", "aliases", "master", "metrics", "blocks"}
+    known = {"name", "description", "connections", "aliases", "units", "master", "metrics", "blocks"}
     for key in data:
         if key not in known:
             problems.append(f"unknown top-level key '{key}' (known: {', '.join(sorted(known))})")
@@ -323,24 +329,12 @@ def scene_from_dict(data: Mapping[str, Any], *, name: str = "", source: str = ""
             if not fmu_path.is_absolute():  # relative to the scene file
                 settings["fmu"] = str(Path(source).resolve().parent / fmu_path)
         blocks.append(BlockSpec(bname, kind, FrozenMap(settings), FrozenMap(), str(table.get("description", ""))))
-    connections = []
-    raw_conn = data.get("connections", [])
-    if not isinstance(raw_conn, (list, tuple)):
-        problems.append("connections must be a list of \"src.port -> dst.port\" strings")
-        raw_conn = []
-    for item in raw_conn:
-        try:
-            if isinstance(item, str):
-                src, arrow, dst = item.partition("->")
-                if not arrow:
-                    raise SceneError(f"connection '{item}' must read 'block.output -> block.input'")
-            elif isinstance(item, (list, tuple)) and len(item) == 2:
-                src, dst = item
-            else:
-                raise SceneError(f"connection {item!r} must read 'block.output -> block.input'")
-            connections.append(Connection(PortRef.parse(src, "output"), PortRef.parse(dst, "input")))
-        except SceneError as exc:
-            problems.extend(exc.problems)
+    connections = _connections(data.get("connections", []), "connections", problems)
+    units = data.get("units", {})
+    if not isinstance(units, Mapping) or set(units) - {"waive"}:
+        problems.append("[units] takes one key: waive = [\"src.port -> dst.port\", ...]")
+        units = {}
+    unit_waivers = _connections(units.get("waive", []), "units.waive", problems)
     aliases = {}
     for alias, members in dict(data.get("aliases", {})).items():
         if isinstance(members, str):
@@ -359,4 +353,28 @@ def scene_from_dict(data: Mapping[str, Any], *, name: str = "", source: str = ""
         metrics=metrics,
         aliases=FrozenMap(aliases),
         source=source,
+        unit_waivers=tuple(unit_waivers),
     )
+
+
+def _connections(raw: Any, key: str, problems: list[str]) -> list[Connection]:
+    """"src.port -> dst.port" strings (or [src, dst] pairs) as Connections; problems collected."""
+    if not isinstance(raw, (list, tuple)):
+        problems.append(f"{key} must be a list of \"src.port -> dst.port\" strings")
+        return []
+    label = "connection" if key == "connections" else f"{key}:"
+    out = []
+    for item in raw:
+        try:
+            if isinstance(item, str):
+                src, arrow, dst = item.partition("->")
+                if not arrow:
+                    raise SceneError(f"{label} '{item}' must read 'block.output -> block.input'")
+            elif isinstance(item, (list, tuple)) and len(item) == 2:
+                src, dst = item
+            else:
+                raise SceneError(f"{label} {item!r} must read 'block.output -> block.input'")
+            out.append(Connection(PortRef.parse(src, "output"), PortRef.parse(dst, "input")))
+        except SceneError as exc:
+            problems.extend(exc.problems)
+    return out

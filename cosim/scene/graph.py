@@ -5,6 +5,10 @@ collects *all* problems into one SceneError: unknown blocks and ports, outputs u
 dangling and doubly driven inputs, unit mismatches, signals that do not exist, algebraic loops
 that cannot be iterated (printed port by port), couplings a block cannot take part in.
 
+Units: FMI makes a variable's unit optional, so a port without one (`""`) connects to anything
+and the plan notes the connection as unchecked; two declared units must be equal (`"1"` and `"-"`
+are both dimensionless) unless the scene waives that connection (`[units] waive`).
+
 It then decides what the run needs:
 * pruning: only blocks that feed a requested signal (recorders' signals and the metrics'
   signals, or the caller's `outputs`) are instantiated; only requested signals are recorded;
@@ -25,16 +29,47 @@ from ..fmi.fmi_types import conversion_problem
 from ..sccs import cycle_through, strongly_connected
 from .blocks import ResolvedBlock, resolve
 from .data import FrozenMap, PortRef, Scene
+from .specs import Connection
 from .fmu_ports import expand_array_connections, expand_array_refs, hold_unconnected_inputs, keep_used_outputs
 from .guards import step_problems
 from .plan import Loop, Plan
 
-DIMENSIONLESS = {"", "1", "-"}
+DIMENSIONLESS = {"1", "-"}
 
 
 def same_unit(a: str, b: str) -> bool:
+    """Two declared units name the same unit (no conversion: "mm" is not "m")."""
     a, b = a.strip(), b.strip()
     return a == b or (a in DIMENSIONLESS and b in DIMENSIONLESS)
+
+
+def declares_unit(unit: str) -> bool:
+    """FMI leaves a variable's unit optional: "" means none was declared (not dimensionless)."""
+    return bool(unit.strip())
+
+
+def _unit_checks(connections: Sequence[Connection], waived: set[Connection],
+                 resolved: dict[str, ResolvedBlock]) -> tuple[list[str], list[str]]:
+    """(problems, notes) of the unit check over connections whose ports exist."""
+    problems, unchecked, waived_used = [], [], []
+    for conn in connections:
+        u_src = resolved[conn.src.block].outputs[conn.src.port].unit
+        u_dst = resolved[conn.dst.block].inputs[conn.dst.port].unit
+        if not (declares_unit(u_src) and declares_unit(u_dst)):
+            unchecked.append(str(conn))
+        elif same_unit(u_src, u_dst):
+            continue
+        elif conn in waived:
+            waived_used.append(f"{conn} ('{u_src}' into '{u_dst}')")
+        else:
+            problems.append(f"unit mismatch on '{conn}': output is in '{u_src}', input expects '{u_dst}' "
+                            f"(if the values agree, waive it: [units] waive = [\"{conn}\"])")
+    notes = []
+    if unchecked:
+        notes.append(f"units not checked (a port declares no unit): {', '.join(unchecked)}")
+    if waived_used:
+        notes.append(f"unit check waived by the scene ([units] waive): {', '.join(waived_used)}")
+    return problems, notes
 
 
 def _port_list(ports: Iterable[str]) -> str:
@@ -96,6 +131,7 @@ def plan(scene: Scene, outputs: Sequence[str] | None = None) -> Plan:
         return True
 
     source_of: dict[PortRef, PortRef] = {}
+    checked: list[Connection] = []
     for conn in expand_array_connections(scene.connections, resolved, problems):
         ok = check_output(conn.src, f"connection '{conn}'")
         dst = conn.dst
@@ -115,13 +151,15 @@ def plan(scene: Scene, outputs: Sequence[str] | None = None) -> Plan:
             continue
         source_of[dst] = conn.src
         if ok:
-            u_src = resolved[conn.src.block].outputs[conn.src.port].unit
-            u_dst = rb.inputs[dst.port].unit
-            if not same_unit(u_src, u_dst):
-                problems.append(f"unit mismatch on '{conn}': output is in '{u_src}', input expects '{u_dst}'")
+            checked.append(conn)
             why = conversion_problem(resolved[conn.src.block].outputs[conn.src.port].type, rb.inputs[dst.port].type)
             if why:
                 problems.append(f"type mismatch on '{conn}': {why}")
+    waived = set(expand_array_connections(scene.unit_waivers, resolved, problems))
+    for conn in sorted(waived - set(checked), key=str):
+        problems.append(f"[units] waive: '{conn}' is not a connection of the scene")
+    unit_problems, unit_notes = _unit_checks(checked, waived, resolved)
+    problems.extend(unit_problems)
     held_notes: list[str] = []
     for name, rb in resolved.items():
         dangling = [port for port in rb.inputs if PortRef(name, port) not in source_of]
@@ -153,6 +191,14 @@ def plan(scene: Scene, outputs: Sequence[str] | None = None) -> Plan:
                 metric_refs.append(PortRef.parse(text, f"metrics.{attr}"))
             except SceneError as exc:
                 problems.extend(exc.problems)
+    record_all_notes = []
+    if outputs is None and not requested and not metric_refs:
+        # A system from elsewhere (an SSP package without system outputs) names nothing to record:
+        # pruning would leave nothing to compute, so every block's every output is recorded.
+        requested = [PortRef(n, port) for n, rb in resolved.items() if not rb.records_only for port in rb.outputs]
+        if requested:
+            record_all_notes.append(f"no signals requested (no recorder, metrics or --record): recording every "
+                                    f"output of every block ({len(requested)} signals)")
     for ref in [*requested, *metric_refs]:
         check_output(ref, f"signal {ref}")
     problems.extend(scene.master.check())
@@ -209,7 +255,7 @@ def plan(scene: Scene, outputs: Sequence[str] | None = None) -> Plan:
                 while alias_of[alias_of[n]] != alias_of[n]:
                     alias_of[n] = alias_of[alias_of[n]]
     instantiate = [n for n in names if n in needed and alias_of[n] == n]
-    notes: list[str] = list(amplitude_notes) + held_notes
+    notes: list[str] = list(amplitude_notes) + record_all_notes + unit_notes + held_notes
     for n in names:
         if n in needed and alias_of[n] != n:
             notes.append(f"'{n}' is identical to '{alias_of[n]}' and driven by the same signals: integrated once")
@@ -278,7 +324,8 @@ def _check_coupling(p: Plan) -> list[str]:
                             "(master.coupling = strong); use master.coupling = mixed (the others stay one ODE), "
                             "jacobi or gauss-seidel")
         if rb.fmu_info is not None and not (rb.fmu_info.has_me or rb.fmu_info.has_cs):
-            problems.append(f"block '{n}': the FMU offers neither Model Exchange nor Co-Simulation")
+            problems.append(f"block '{n}': the FMU offers neither <ModelExchange> nor <CoSimulation> "
+                            "(FMI 3.0 <ScheduledExecution> is not supported)")
         if master.coupling in ("jacobi", "gauss-seidel") and master.adaptive and not rb.can_rollback:
             problems.append(f"block '{n}' cannot save and restore its state, which the adaptive macro step "
                             "needs to reject a step; set master.adaptive = false")

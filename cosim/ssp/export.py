@@ -6,13 +6,22 @@ SystemStructure.ssd every FMU block is an ssd:Component with its ports as connec
 parameter values the run would use as an inline ssv:ParameterSet; connections between FMU
 blocks are ssd:Connections.
 
-Blocks SSP has no component type for (the stroke controller, constants, gains, recorders,
-Python blocks) stay featherstar blocks: they are written, with the master and metrics settings,
-in an ssc:Annotation of type `org.featherstar.scene` (JSON). Where such a block drives an FMU
-input, the system gets an input connector named "block.port" (and an output connector where an
-FMU output drives such a block), so the FMU part of the system is complete standard SSP that
-OMSimulator or libcosim can run with the inputs supplied their way, and `featherstar run x.ssp`
-(featherstar.cosim.ssp.read) puts the same scene back together.
+For other tools the package is FMUs only where it can be: a Python block that drives an FMU
+input and offers an FMU of itself (`fmu_stand_in()`: the stroke controller, constants; built by
+fmu_src like the others) is an ssd:Component too, and ssd:DefaultExperiment gives the run's
+length (a run measured in stroke periods: periods x period). Ecos and libcosim run such a
+package as it is (tests/cosim/test_ssp_peers.py). With `system_outputs`, the recorded signals
+(recorders' and metrics') of components are also system output connectors named "block.port",
+each fed by an ssd:Connection without endElement, as SSP connects system connectors; Ecos 0.7.2
+and libcosim 0.0.6 refuse any such connection ("No element named: feather", "No such node
+(<xmlattr>.endElement)"), so it is off by default.
+
+Every featherstar block (stand-ins included, as they were: a stroke, not its FMU), the master
+and metrics settings are written in an ssc:Annotation of type `org.featherstar.scene` (JSON),
+so `featherstar run x.ssp` (featherstar.cosim.ssp.read) puts the same scene back together.
+Blocks without an FMU (gains, recorders, Python blocks, a sampled stroke command) exist only
+there; where one drives an FMU input the system gets an input connector named "block.port" (an
+output connector where an FMU output drives one), which other tools must supply their own way.
 """
 from __future__ import annotations
 
@@ -25,11 +34,17 @@ import zipfile
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
+from ...fmu_src.model import Model
 from ..errors import SceneError
 from ..scene.blocks import ResolvedBlock
 from ..scene.data import MasterSpec, MetricsSpec, Scene
 from ..scene.graph import plan as make_plan
+from ..scene.plan import Plan
 from .read import FEATHERSTAR_ANNOTATION, FMU_TYPE, NS, SSD_NAME
+
+#: Every component's parameter set has this name: Ecos applies the sets of one name, chosen at
+#: initialization (`EcosSimulation.init(parameter_set="initialValues")`); others ignore the name.
+PARAMETER_SET_NAME = "initialValues"
 
 for _prefix, _uri in NS.items():
     ET.register_namespace(_prefix, _uri)
@@ -44,8 +59,10 @@ def _number(value: float) -> str:
 
 
 def export_ssp(scene: Scene, out: Path, overrides: Mapping[str, Any] | None = None, *,
-               fmi_version: int = 3, progress: Callable[[str], None] | None = None) -> Path:
+               fmi_version: int = 3, system_outputs: bool = False,
+               progress: Callable[[str], None] | None = None) -> Path:
     """Write `scene` (with "block.key" overrides) as the SSP package `out`; returns its path.
+    `system_outputs` adds the recorded signals as system output connectors (module docstring).
     `progress` hears about each FMU as it is built or copied (a build can take a minute).
 
     Raises SceneError for a scene that does not validate, BuildError when an FMU cannot be built.
@@ -56,6 +73,7 @@ def export_ssp(scene: Scene, out: Path, overrides: Mapping[str, Any] | None = No
                   if plan.blocks[name].model is not None or plan.blocks[name].fmu_path is not None]
     if not fmu_blocks:
         raise SceneError(f"scene '{scene.name}' has no FMU blocks: an SSP package would hold no component")
+    stand_ins = _stand_ins(scene, plan, set(fmu_blocks))
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix="featherstar-ssp-") as tmp:
@@ -65,7 +83,14 @@ def export_ssp(scene: Scene, out: Path, overrides: Mapping[str, Any] | None = No
             if progress is not None:
                 progress(f"FMU of block '{name}'")
             sources[name] = _fmu_file(plan.blocks[name], work, fmi_version)
-        ssd = _system_structure(scene, plan.blocks, sources)
+        from ...fmu_src.export import build_fmu
+
+        for name, (model, _) in stand_ins.items():
+            if progress is not None:
+                progress(f"FMU standing in for block '{name}' ({model.name})")
+            sources[name] = _copy_fmu(build_fmu(model, fmi_version=fmi_version), work, name)
+        ssd = _system_structure(scene, plan, sources, {n: values for n, (_, values) in stand_ins.items()},
+                                system_outputs)
         (work / SSD_NAME).write_text(ssd, encoding="utf-8")
         partial = out.with_name(f".{out.name}.part")
         with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as archive:
@@ -76,16 +101,35 @@ def export_ssp(scene: Scene, out: Path, overrides: Mapping[str, Any] | None = No
     return out
 
 
+def _stand_ins(scene: Scene, plan: Plan, fmu_blocks: set[str]) -> dict[str, tuple[Model, dict[str, float]]]:
+    """{block: (model, parameter values)} of the Python blocks that drive an FMU input and offer
+    an FMU of themselves."""
+    from ...fmu_src.catalog import build_model
+
+    drives_fmu = {c.src.block for c in scene.connections if c.dst.block in fmu_blocks}
+    out = {}
+    for name in scene.block_names:
+        offer = getattr(plan.blocks[name].obj, "fmu_stand_in", None)
+        stand_in = offer() if name in drives_fmu and offer is not None else None
+        if stand_in is not None:
+            kind, options, values = stand_in
+            out[name] = (build_model(kind, options), dict(values))
+    return out
+
+
 def _fmu_file(rb: ResolvedBlock, work: Path, fmi_version: int) -> str:
     """Put the block's FMU under work/resources/; returns its path inside the package."""
-    target = work / "resources" / f"{rb.name}.fmu"
-    target.parent.mkdir(exist_ok=True)
     if rb.model is not None:
         from ...fmu_src.export import build_fmu
 
-        shutil.copyfile(build_fmu(rb.model, fmi_version=fmi_version), target)
-    else:
-        shutil.copyfile(rb.fmu_path, target)
+        return _copy_fmu(build_fmu(rb.model, fmi_version=fmi_version), work, rb.name)
+    return _copy_fmu(rb.fmu_path, work, rb.name)
+
+
+def _copy_fmu(path: Path, work: Path, name: str) -> str:
+    target = work / "resources" / f"{name}.fmu"
+    target.parent.mkdir(exist_ok=True)
+    shutil.copyfile(path, target)
     return f"resources/{target.name}"
 
 
@@ -99,7 +143,9 @@ def _parameter_values(rb: ResolvedBlock) -> dict[str, float]:
     return values
 
 
-def _system_structure(scene: Scene, blocks: dict[str, ResolvedBlock], sources: dict[str, str]) -> str:
+def _system_structure(scene: Scene, plan: Plan, sources: dict[str, str],
+                      stand_ins: dict[str, dict[str, float]], system_outputs: bool) -> str:
+    blocks = plan.blocks
     root = ET.Element(_q("ssd", "SystemStructureDescription"), {"version": "1.0", "name": scene.name})
     system = ET.SubElement(root, _q("ssd", "System"), {"name": scene.name})
     if scene.description:
@@ -121,6 +167,10 @@ def _system_structure(scene: Scene, blocks: dict[str, ResolvedBlock], sources: d
             ssd_connections.append({"startElement": src.block, "startConnector": src.port, "endConnector": str(dst)})
         else:
             featherstar_connections.append(str(connection))
+    for ref in plan.requested if system_outputs else ():   # for tools that record system outputs
+        if ref.block in in_ssp:
+            system_connectors.append((str(ref), "output"))
+            ssd_connections.append({"startElement": ref.block, "startConnector": ref.port, "endConnector": str(ref)})
     if system_connectors:
         connectors = ET.SubElement(system, _q("ssd", "Connectors"))
         for name, kind in dict.fromkeys(system_connectors):
@@ -129,7 +179,7 @@ def _system_structure(scene: Scene, blocks: dict[str, ResolvedBlock], sources: d
 
     elements = ET.SubElement(system, _q("ssd", "Elements"))
     for name, source in sources.items():
-        _component(elements, blocks[name], source)
+        _component(elements, blocks[name], source, stand_ins.get(name))
     if ssd_connections:
         connections = ET.SubElement(system, _q("ssd", "Connections"))
         for attributes in ssd_connections:
@@ -138,22 +188,21 @@ def _system_structure(scene: Scene, blocks: dict[str, ResolvedBlock], sources: d
     annotations = ET.SubElement(system, _q("ssd", "Annotations"))
     annotation = ET.SubElement(annotations, _q("ssc", "Annotation"), {"type": FEATHERSTAR_ANNOTATION})
     ET.SubElement(annotation, _q("fs", "Scene"), {"format": "json"}).text = json.dumps(
-        _featherstar_part(scene, in_ssp, featherstar_connections), indent=1, sort_keys=True)
-
-    master = scene.master
-    if master.t_end_s > 0:  # a run measured in stroke periods has no fixed stop time
-        ET.SubElement(root, _q("ssd", "DefaultExperiment"), {"startTime": "0.0", "stopTime": _number(master.t_end_s)})
+        _featherstar_part(scene, set(sources) - set(stand_ins), featherstar_connections, sorted(stand_ins)),
+        indent=1, sort_keys=True)
+    # the run's length, also when given in stroke periods (the annotation keeps `periods`)
+    ET.SubElement(root, _q("ssd", "DefaultExperiment"), {"startTime": "0.0", "stopTime": _number(plan.t_end_s)})
     ET.indent(root, space="  ")
     return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode")
 
 
-def _component(elements: ET.Element, rb: ResolvedBlock, source: str) -> None:
+def _component(elements: ET.Element, rb: ResolvedBlock, source: str, stand_in: dict[str, float] | None) -> None:
     component = ET.SubElement(elements, _q("ssd", "Component"),
                               {"name": rb.name, "type": FMU_TYPE, "source": source})
     if rb.spec.description:
         component.set("description", rb.spec.description)
     connectors = ET.SubElement(component, _q("ssd", "Connectors"))
-    values = _parameter_values(rb)
+    values = _parameter_values(rb) if stand_in is None else stand_in
     for kind, ports in (("input", rb.inputs), ("output", rb.outputs), ("parameter", dict.fromkeys(values))):
         for port in ports:
             connector = ET.SubElement(connectors, _q("ssd", "Connector"), {"name": port, "kind": kind})
@@ -163,15 +212,16 @@ def _component(elements: ET.Element, rb: ResolvedBlock, source: str) -> None:
     bindings = ET.SubElement(component, _q("ssd", "ParameterBindings"))
     binding = ET.SubElement(bindings, _q("ssd", "ParameterBinding"))
     holder = ET.SubElement(binding, _q("ssd", "ParameterValues"))
-    parameter_set = ET.SubElement(holder, _q("ssv", "ParameterSet"), {"version": "1.0", "name": rb.name})
+    parameter_set = ET.SubElement(holder, _q("ssv", "ParameterSet"), {"version": "1.0", "name": PARAMETER_SET_NAME})
     parameters = ET.SubElement(parameter_set, _q("ssv", "Parameters"))
     for name, value in values.items():
         parameter = ET.SubElement(parameters, _q("ssv", "Parameter"), {"name": name})
         ET.SubElement(parameter, _q("ssv", "Real"), {"value": _number(value)})
 
 
-def _featherstar_part(scene: Scene, in_ssp: set[str], connections: list[str]) -> dict[str, Any]:
-    """What only featherstar reads back: its own blocks, their connections, master and metrics."""
+def _featherstar_part(scene: Scene, in_ssp: set[str], connections: list[str], stand_ins: list[str]) -> dict[str, Any]:
+    """What only featherstar reads back: its own blocks (and which components stand in for some
+    of them), their connections, master and metrics."""
     blocks = {}
     for block in scene.blocks:
         if block.name in in_ssp:
@@ -188,13 +238,17 @@ def _featherstar_part(scene: Scene, in_ssp: set[str], connections: list[str]) ->
     def changed(spec: Any, default: Any) -> dict[str, Any]:
         return {k: v for k, v in dataclasses.asdict(spec).items() if v != getattr(default, k)}
 
+    master = changed(scene.master, MasterSpec())
+    master["t_end_s"] = scene.master.t_end_s   # 0 = `periods` rules, whatever DefaultExperiment says
     return {
         "description": scene.description,
         "blocks": blocks,
+        "stand_ins": stand_ins,
         "connections": connections,
         "overrides": overrides,
         "aliases": scene.aliases.to_plain(),
-        "master": changed(scene.master, MasterSpec()),
+        **({"units": {"waive": [str(c) for c in scene.unit_waivers]}} if scene.unit_waivers else {}),
+        "master": master,
         "metrics": changed(scene.metrics, MetricsSpec()),
     }
 

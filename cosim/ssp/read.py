@@ -10,16 +10,23 @@ parameters; ssd:DefaultExperiment's stopTime becomes master.t_end_s. A package w
 blocks SSP has no component type for, the master and metrics settings; system connectors named
 "block.port" connect those blocks. System outputs fed by components are recorded.
 
+A connection between two components with an ssc:LinearTransformation (y = factor x + offset)
+becomes a `gain` block between them (named `transform_<n>`, its ports without units, so the plan
+notes the connection as not unit-checked).
+
 What featherstar cannot map is refused, naming the element: nested systems, signal
-dictionaries, non-FMU components, parameter mappings, connection transformations (unit,
-linear, boolean, integer, enumeration mappings), non-numeric parameter values, system inputs
-nothing drives, a start time other than 0. Other annotations and geometry are ignored.
+dictionaries, non-FMU components, parameter mappings, other connection transformations
+(boolean, integer, enumeration mappings) and linear ones on system connectors, connections
+between connectors whose declared units differ (featherstar converts no unit), non-numeric
+parameter values, system inputs nothing drives, a start time other than 0. Other annotations and
+geometry are ignored.
 """
 from __future__ import annotations
 
 import copy
 import hashlib
 import json
+import math
 import os
 import shutil
 import tempfile
@@ -146,6 +153,7 @@ class _SystemReader:
         self.where = where
         self.problems: list[str] = []
         self.annotation: Any = None  # the featherstar annotation as written (JSON), judged whole
+        self.units: dict[tuple[str | None, str], str] = {}   # (element or None, connector) -> declared unit
 
     def refuse(self, message: str) -> None:
         self.problems.append(message)
@@ -218,10 +226,17 @@ class _SystemReader:
         for component, values in parameters.items():
             if component in blocks and values:
                 blocks[component]["parameters"] = values
+        annotated = bool(extra)
         own_blocks = extra.pop("blocks", {})
+        # components that stand in for featherstar blocks (a stroke's FMU, for other tools):
+        # featherstar runs the blocks themselves
+        stand_ins = set(extra.pop("stand_ins", []))
         for name in own_blocks:
-            if name in blocks:
+            if name in blocks and name not in stand_ins:
                 self.refuse(f"block '{name}' of the {FEATHERSTAR_ANNOTATION} annotation has the name of an ssd:Component")
+        for name in sorted(stand_ins - set(own_blocks) - set(blocks)):
+            self.refuse(f"the {FEATHERSTAR_ANNOTATION} annotation's stand-in '{name}' is no ssd:Component of the "
+                        "system with a block of that name in the annotation")
         blocks.update(own_blocks)
         connections = list(extra.pop("connections", []))
         outputs = []
@@ -229,9 +244,12 @@ class _SystemReader:
             mapped = self._connection(connection, blocks, own_blocks, connectors)
             if isinstance(mapped, tuple):
                 outputs.append(mapped[0])
+            elif isinstance(mapped, list):
+                connections.extend(mapped)
             elif mapped:
                 connections.append(mapped)
-        if outputs and OUTPUTS_RECORDER not in blocks:
+        # featherstar's own package names its recorders; the system outputs repeat their signals
+        if outputs and OUTPUTS_RECORDER not in blocks and not annotated:
             blocks[OUTPUTS_RECORDER] = {"kind": "recorder", "signals": outputs}
         data.update(extra)
         data["blocks"] = blocks
@@ -273,7 +291,13 @@ class _SystemReader:
                             "(input, output, parameter, calculatedParameter)")
                 continue
             kinds[name] = kind
+            self._note_unit(None, connector)
         return kinds
+
+    def _note_unit(self, element: str | None, connector: ET.Element) -> None:
+        for typed in connector:
+            if typed.get("unit"):
+                self.units[(element, connector.get("name", ""))] = typed.get("unit", "")
 
     # --- components ------------------------------------------------------------------------
     def _element(self, element: ET.Element, blocks: dict[str, Any], parameters: dict[str, Any]) -> None:
@@ -300,6 +324,9 @@ class _SystemReader:
             local = _name(child)
             if local == "ssd:ParameterBindings":
                 parameters.setdefault(name, {}).update(self._bindings(child, label))
+            elif local == "ssd:Connectors":
+                for connector in child.iterfind(_q("ssd", "Connector")):
+                    self._note_unit(name, connector)
             elif local != "ssd:Connectors" and local.split(":")[-1] not in _IGNORED:
                 self.refuse(f"{local} in {label}: featherstar cannot map it")
         blocks[name] = block
@@ -375,27 +402,53 @@ class _SystemReader:
 
     # --- connections -----------------------------------------------------------------------
     def _connection(self, connection: ET.Element, blocks: dict[str, Any], own: dict[str, Any],
-                    connectors: dict[str, str]) -> str | tuple[str] | None:
+                    connectors: dict[str, str]) -> str | list[str] | tuple[str] | None:
         start = (connection.get("startElement"), connection.get("startConnector"))
         end = (connection.get("endElement"), connection.get("endConnector"))
         label = f"ssd:Connection {'.'.join(filter(None, start)) or '?'} -> {'.'.join(filter(None, end)) or '?'}"
         if not start[1] or not end[1]:
             self.refuse(f"{label} needs a startConnector and an endConnector")
             return None
+        linear = None
         for child in connection:
-            if _name(child) != "ssd:ConnectionGeometry":
-                self.refuse(f"{_name(child)} on the {label}: featherstar connects ports one to one, without "
-                            "transformations (put a gain block into a featherstar scene instead)")
+            if _name(child) == "ssc:LinearTransformation" and linear is None and start[0] and end[0]:
+                linear = child
+            elif _name(child) != "ssd:ConnectionGeometry":
+                where = "" if start[0] and end[0] else " (transformations between components only)"
+                self.refuse(f"{_name(child)} on the {label}: featherstar maps only ssc:LinearTransformation{where}")
                 return None
         for element, _ in (start, end):
             if element is not None and element not in blocks:
                 self.refuse(f"{label} names element '{element}', which is not a component of the system")
                 return None
+        units = (self.units.get(start), self.units.get(end))
+        if all(units) and units[0] != units[1]:
+            self.refuse(f"{label}: its connectors' units differ ('{units[0]}' -> '{units[1]}'); SSP tools convert "
+                        "between them, featherstar converts no unit (give both connectors the same unit)")
+            return None
+        if linear is not None:
+            return self._transformed(linear, f"{start[0]}.{start[1]}", f"{end[0]}.{end[1]}", blocks, label)
         src = self._endpoint(start, own, connectors, "input", label)
-        if end[0] is None and src and end[1].partition(".")[0] not in own and connectors.get(end[1]) == "output":
+        fed = end[1].partition(".")[0]   # a featherstar block the connector leads to, or the source itself
+        if end[0] is None and src and (fed not in own or fed == start[0]) and connectors.get(end[1]) == "output":
             return (src,)  # a system output: recorded
         dst = self._endpoint(end, own, connectors, "output", label)
         return f"{src} -> {dst}" if src and dst else None
+
+    def _transformed(self, linear: ET.Element, src: str, dst: str, blocks: dict[str, Any], label: str) -> list[str] | None:
+        """src -> transform_<n>.u, transform_<n>.y -> dst through y = factor u + offset."""
+        factor = self._float(linear, "factor", f"ssc:LinearTransformation on the {label}", 1.0)
+        offset = self._float(linear, "offset", f"ssc:LinearTransformation on the {label}", 0.0)
+        if factor is None or offset is None:
+            return None
+        if not (math.isfinite(factor) and math.isfinite(offset)):
+            self.refuse(f"ssc:LinearTransformation on the {label}: factor = {factor!r}, offset = {offset!r} "
+                        "must be finite")
+            return None
+        name = next(f"transform_{n}" for n in range(len(blocks) + 1) if f"transform_{n}" not in blocks)
+        blocks[name] = {"kind": "gain", "gain": factor, "offset": offset, "unit_in": "", "unit_out": "",
+                        "description": f"ssc:LinearTransformation of the {label}"}
+        return [f"{src} -> {name}.u", f"{name}.y -> {dst}"]
 
     def _endpoint(self, endpoint: tuple[str | None, str], own: dict[str, Any], connectors: dict[str, str],
                   system_kind: str, label: str) -> str | None:

@@ -208,6 +208,15 @@ class StrokeController(TimeSource):
         s = self.stroke
         return root_motion_function(), [s.t_up_s, s.t_hold_up_s, s.t_down_s, s.t_hold_down_s, s.amplitude_rad]
 
+    def fmu_stand_in(self) -> tuple[str, dict[str, Any], dict[str, float]] | None:
+        """The FMU that stands in for this block in an SSP package (featherstar.cosim.ssp.export):
+        (catalog model kind, build options, parameter values); None for a sampled command."""
+        if self.command.sample_period_s:
+            return None
+        s = self.stroke
+        return "stroke_source", {}, {"t_up_s": s.t_up_s, "t_hold_up_s": s.t_hold_up_s, "t_down_s": s.t_down_s,
+                                     "t_hold_down_s": s.t_hold_down_s, "amplitude_rad": s.amplitude_rad}
+
     def start(self, t0_s: float) -> None:
         super().start(t0_s)
         self._t0, self._samples_rad = t0_s, []   # samples count from the run's start

@@ -37,6 +37,9 @@ def summary_table(summary: dict[str, Any]) -> str:
     if per:
         lines.append(f"  {'TR per period':<30} " + ", ".join(f"{v:.3f}" for v in per))
     lines += _realtime_lines(summary)
+    if "terminated_by" in summary:
+        lines.append(f"  {'ended by':<30} {summary['terminated_by']} (asked to terminate) at "
+                     f"t={summary['terminated_at_s']:.6g} s of {summary.get('t_end_s', 0.0):.6g} s")
     if "error" in summary:
         lines.append(f"  FAILED: {summary['error']}")
     return "\n".join(lines)

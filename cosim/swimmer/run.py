@@ -182,6 +182,16 @@ def _result(plan: Plan, sim: Simulator, wall: float, overrides: Mapping[str, Any
         summary.update(scene_metrics(sc.metrics, plan.period_s, t, signals))
     if error is not None:
         summary.update(error=str(error), failed_block=error.block, failed_at_s=error.t_s)
+    if sim.ended is not None:   # a model that said it is done (FMI terminateSimulation): not an error
+        by, t_stop = sim.ended
+        summary.update(terminated_by=by, terminated_at_s=t_stop)
+        eps = 1e-12 * max(1.0, abs(t_stop))   # the macro grid's own rounding is not "inside"
+        inside = {n: u.terminated_at_s for n, u in units.items()
+                  if u.terminated_at_s is not None and u.terminated_at_s < t_stop - eps}
+        if inside:
+            summary["terminated_note"] = "; ".join(
+                f"{n} stopped at t={t_s!r} s inside the last macro step" for n, t_s in inside.items()
+            ) + f": the run ended at the communication point t={t_stop!r} s (a master.step_s that lands on it ends there)"
     complete = error is None
     if sc.master.realtime:
         trusted = _realtime_summary(plan, context, units, t, signals, summary,

@@ -18,6 +18,8 @@ from dataclasses import dataclass
 import casadi as ca
 
 from ...fmu_src.errors import ModelError
+# the stroke's CasADi expressions live beside its FMU model (the SSP export's stroke source)
+from ...fmu_src.stroke_source import root_motion_symbolic
 
 #: Peak rate of the minimum-jerk ramp is this factor times (amplitude / ramp time).
 MIN_JERK_PEAK_RATE_FACTOR = 1.875
@@ -126,30 +128,6 @@ def root_motion(stroke: Stroke, t_s: float) -> tuple[float, float, float]:
         sign * amplitude * ds / duration,
         sign * amplitude * dds / duration**2,
     )
-
-
-def root_motion_symbolic(
-    t: ca.SX, t_up: ca.SX, t_hold_up: ca.SX, t_down: ca.SX, t_hold_down: ca.SX, amplitude_rad: ca.SX
-) -> tuple[ca.SX, ca.SX, ca.SX]:
-    """The same stroke as CasADi expressions, for models that carry the stroke inside the ODE
-    (the monolithic reference and the kinematic scene). Stroke times may be symbols."""
-    period = t_up + t_hold_up + t_down + t_hold_down
-    phase = ca.fmod(t, period)
-    rising = phase < t_up
-    falling = ca.logic_and(phase >= t_up + t_hold_up, phase < t_up + t_hold_up + t_down)
-    tau = ca.if_else(rising, phase / t_up, (phase - t_up - t_hold_up) / t_down)
-    tau = ca.fmin(ca.fmax(tau, 0), 1)
-    s = tau**3 * (10 - 15 * tau + 6 * tau**2)
-    ds = 30 * tau**2 * (1 - 2 * tau + tau**2)
-    dds = 60 * tau * (1 - 3 * tau + 2 * tau**2)
-    duration = ca.if_else(rising, t_up, t_down)
-    sign = ca.if_else(rising, 1, -1)
-    moving = ca.logic_or(rising, falling)
-    held = ca.if_else(phase < t_up + t_hold_up + t_down, 0.5, -0.5) * amplitude_rad
-    angle = ca.if_else(moving, sign * amplitude_rad * (s - 0.5), held)
-    rate = ca.if_else(moving, sign * amplitude_rad * ds / duration, 0)
-    accel = ca.if_else(moving, sign * amplitude_rad * dds / duration**2, 0)
-    return angle, rate, accel
 
 
 def root_motion_function() -> ca.Function:

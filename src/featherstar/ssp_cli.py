@@ -28,6 +28,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--fmi", type=int, choices=(2, 3), default=3, metavar="{2,3}",
                         help="FMI version of the FMUs built from models (default 3; 2 for importers "
                         "that read FMI 2.0 only); FMU files are packed as they are")
+    parser.add_argument("--system-outputs", action="store_true",
+                        help="also write the recorded signals as system output connectors (SSP's way to "
+                        "expose results; Ecos and libcosim refuse such packages)")
 
     def run(args: argparse.Namespace) -> int:
         from .cosim.scenes import load_scene
@@ -44,7 +47,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         def progress(what: str) -> None:
             print(f"featherstar export-ssp: {what} (built once, then cached)", file=sys.stderr, flush=True)
 
-        print(export_ssp(load_scene(args.scene), args.out, overrides, fmi_version=args.fmi, progress=progress))
+        print(export_ssp(load_scene(args.scene), args.out, overrides, fmi_version=args.fmi,
+                         system_outputs=args.system_outputs, progress=progress))
         return 0
 
     parser.set_defaults(func=run)

@@ -14,7 +14,9 @@ Models
           discrete Float64 input (settable only in initialization or event mode, as the standard
           says; the FMU logs why when set elsewhere); odd (Boolean) = counter is odd;
           period <= 0 is refused at initialization with a log line; with max_count > 0 it asks
-          to terminate when the counter reaches it (Model Exchange; FMI 3.0 Co-Simulation too)
+          to terminate when the counter reaches it (Model Exchange: terminateSimulation of the event
+          update; Co-Simulation: doStep stops at that event, FMI 3.0 with terminateSimulation and
+          lastSuccessfulTime, FMI 2.0 with fmi2Discard + fmi2Terminated)
   vdp     Van der Pol oscillator, Model Exchange only: x0' = x1, x1' = mu (1 - x0^2) x1 - x0
   ball    bouncing ball, Model Exchange only: h' = v, v' = -g; a state event at h = 0 falling
           (event indicator z = h) sets v := -e v and counts bounces (Int32)

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from featherstar.cosim.errors import StepError
 from featherstar.cosim.scene.data import scene_from_dict
+from featherstar.cosim.swimmer.report import summary_table
 from featherstar.cosim.swimmer.run import run_scene
 from scipy.integrate import solve_ivp
 
@@ -101,17 +102,44 @@ def test_a_model_exchange_fmu_under_gauss_seidel_is_as_accurate_as_under_strong_
 
 
 @pytest.mark.parametrize("version", [2, 3])
-@pytest.mark.parametrize("coupling,interface", [("strong", None), ("jacobi", "me")])
-def test_an_fmu_asking_to_terminate_ends_the_run_with_an_error_keeping_the_data(c_fmu, version, coupling, interface):
-    scene = _scene(c_fmu("events", version), coupling, interface).with_overrides({"clock.max_count": 2})
-    with pytest.raises(StepError, match="block 'clock' at t=0.5 s.*asked to terminate") as err:
-        run_scene(scene)
-    partial = err.value.partial
-    assert partial is not None and not partial.complete
-    if coupling == "strong":  # the values after the terminating event are recorded at its time
-        assert partial.time[-1] == pytest.approx(0.5, abs=1e-12) and partial["clock.counter"][-1] == 2
-    else:  # the step that ended with the request is not taken: the last communication point
-        assert partial.time[-1] < 0.5 and partial["clock.counter"][-1] == 1
+@pytest.mark.parametrize("coupling,interface,step_s", [
+    ("strong", None, 0.03), ("jacobi", "me", 0.03), ("gauss-seidel", "me", 0.03),
+    ("jacobi", "cs", 0.05), ("gauss-seidel", "cs", 0.05)])
+@pytest.mark.parametrize("max_count", [1, 2, 4])
+def test_an_fmu_asking_to_terminate_ends_the_run_normally_at_that_time(c_fmu, version, coupling, interface,
+                                                                       step_s, max_count):
+    """terminateSimulation is the model's way to say it is done (ME: in the event update; CS: FMI
+    3.0 doStep's out-argument, FMI 2.0 fmi2Discard + fmi2Terminated): the run ends at
+    t = max_count * period without an error, the data are kept up to and including that time, the
+    summary names who ended it and when."""
+    t_stop = max_count * PERIOD
+    scene = _scene(c_fmu("events", version), coupling, interface, step_s=step_s).with_overrides(
+        {"clock.max_count": max_count})
+    result = run_scene(scene)
+    assert result.complete and "error" not in result.summary
+    assert result.summary["terminated_by"] == "clock"
+    assert result.summary["terminated_at_s"] == pytest.approx(t_stop, abs=1e-12)
+    assert "terminated_note" not in result.summary
+    t = result.time
+    assert t[-1] == pytest.approx(t_stop, abs=1e-12) and np.all(np.diff(t) > 0)
+    assert result["clock.counter"][-1] == max_count   # the values after the terminating event
+    assert np.array_equal(result["clock.counter"], np.floor(t / PERIOD + 1e-9).astype(np.int32))
+    if not (coupling == "gauss-seidel" and interface == "cs"):  # GS holds the counter after the step's event
+        assert np.max(np.abs(result["integ.x"] - _integral_of_counter(t))) < 1e-9
+    assert f"ended by                       clock (asked to terminate) at t={t_stop:g} s of 1.1 s" in \
+        summary_table(result.summary)
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_a_co_simulation_fmu_that_stops_inside_a_macro_step_ends_the_run_at_its_end_and_says_so(c_fmu, version):
+    """doStep from 0.48 s to 0.51 s stops at the event at 0.5 s: the other blocks are at 0.51 s,
+    so the run ends at that communication point, and the summary says where the FMU stopped."""
+    scene = _scene(c_fmu("events", version), "jacobi", "cs", step_s=0.03).with_overrides({"clock.max_count": 2})
+    result = run_scene(scene)
+    assert result.complete
+    assert result.summary["terminated_at_s"] == pytest.approx(0.51, abs=1e-12)
+    assert result.time[-1] == pytest.approx(0.51, abs=1e-12) and result["clock.counter"][-1] == 2
+    assert "clock stopped at t=0.5 s inside the last macro step" in result.summary["terminated_note"]
 
 
 def test_the_adaptive_macro_step_does_not_take_a_discrete_jump_for_a_hold_error(c_fmu):

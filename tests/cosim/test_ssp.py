@@ -4,6 +4,7 @@ outputs runs; what featherstar cannot map is refused naming the element."""
 from __future__ import annotations
 
 import re
+import xml.etree.ElementTree as ET
 import zipfile
 from pathlib import Path
 
@@ -37,7 +38,8 @@ OVERRIDES = {"b.coupling_stiffness_N_m": 50, "source.u": 3.0, "g.offset": -0.5}
 
 @pytest.fixture(scope="module")
 def mixed_ssp(tmp_path_factory) -> Path:
-    return export_ssp(make_scene(OSCILLATOR, **MIXED), tmp_path_factory.mktemp("ssp") / "mixed.ssp", OVERRIDES)
+    return export_ssp(make_scene(OSCILLATOR, **MIXED), tmp_path_factory.mktemp("ssp") / "mixed.ssp", OVERRIDES,
+                      system_outputs=True)
 
 
 def assert_identical(a, b) -> None:
@@ -47,16 +49,34 @@ def assert_identical(a, b) -> None:
         assert np.array_equal(a[name], b[name]), name
 
 
+def assert_same_scene(back, original) -> None:
+    """The scene read back from a package is the one exported: its featherstar blocks (stand-ins
+    are the blocks again, not their FMUs), connections and settings; FMU blocks are FMU files."""
+    a, b = back.to_dict(), original.to_dict()
+    assert sorted(a["connections"]) == sorted(b["connections"])
+    for key in ("master", "metrics", "aliases", "units"):
+        assert a.get(key) == b.get(key), key
+    assert set(a["blocks"]) == set(b["blocks"])
+    for name, table in b["blocks"].items():
+        if table["kind"] != "fmu":
+            assert a["blocks"][name] == table, name
+
+
 def test_exported_package_is_standard_ssp_and_runs_back_identically(mixed_ssp):
     archive = zipfile.ZipFile(mixed_ssp)
-    assert sorted(archive.namelist()) == [SSD_NAME, "resources/a.fmu", "resources/b.fmu", "resources/g.fmu"]
+    assert sorted(archive.namelist()) == [SSD_NAME, *(f"resources/{n}.fmu" for n in ("a", "b", "g", "source"))]
     ssd = archive.read(SSD_NAME).decode()
     assert f'xmlns:ssd="{NS["ssd"]}"' in ssd and 'type="application/x-fmu-sharedlibrary"' in ssd
-    assert '<ssd:Connector name="source.u" kind="input">' in ssd  # featherstar block -> FMU input
-    assert '<ssd:Connection startConnector="source.u" endElement="g" endConnector="u" />' in ssd
-    assert '<ssd:Connection startElement="g" startConnector="y" endConnector="scale.u" />' in ssd
+    # the constant that drives an FMU input is an FMU of its own, set by the override
+    assert '<ssd:Connection startElement="source" startConnector="u" endElement="g" endConnector="u" />' in ssd
+    assert re.search(r'<ssv:Parameter name="u_value">\s*<ssv:Real value="3.0" />', ssd)
+    assert '<ssd:Connection startElement="g" startConnector="y" endConnector="scale.u" />' in ssd  # -> a gain
+    # recorded signals of components are system outputs
+    assert '<ssd:Connection startElement="a" startConnector="position_m" endConnector="a.position_m" />' in ssd
+    assert '<ssd:DefaultExperiment startTime="0.0" stopTime="2.0" />' in ssd
     assert re.search(r'<ssv:Parameter name="coupling_stiffness_N_m">\s*<ssv:Real value="50.0" />', ssd)
-    for name in ("a", "b", "g"):
+    assert_same_scene(load_scene(mixed_ssp), make_scene(OSCILLATOR, **MIXED).with_overrides(OVERRIDES))
+    for name in ("a", "b", "g", "source"):
         archive.extract(f"resources/{name}.fmu", mixed_ssp.parent)
         assert validate_fmu(str(mixed_ssp.parent / "resources" / f"{name}.fmu")) == []
 
@@ -71,11 +91,23 @@ def test_exported_package_is_standard_ssp_and_runs_back_identically(mixed_ssp):
 def test_testbed_round_trip_on_fmi3_and_fmi2(tmp_path):
     short = {"feather.morphology": "plain", "master.periods": 1, "metrics.settle_periods": 0}
     direct = run_scene("testbed", short)
-    for fmi_version in (3, 2):
-        package = export_ssp(load_scene("testbed"), tmp_path / f"testbed-fmi{fmi_version}.ssp", short, fmi_version=fmi_version)
+    for fmi_version, system_outputs in ((3, False), (2, False), (3, True)):
+        package = export_ssp(load_scene("testbed"), tmp_path / f"testbed-fmi{fmi_version}-{system_outputs}.ssp", short,
+                             fmi_version=fmi_version, system_outputs=system_outputs)
         scene = load_scene(package)
         versions = {read_model_description(scene.block(b).settings["fmu"]).fmiVersion for b in ("servo", "feather")}
         assert versions == {f"{fmi_version}.0"}
+        # FMUs only for other tools: the stroke and the still water are components too; the run
+        # length, given in periods, is periods x period there and stays `periods` here
+        ssd = zipfile.ZipFile(package).read(SSD_NAME).decode()
+        assert '<ssd:DefaultExperiment startTime="0.0" stopTime="1.5" />' in ssd
+        assert 'endElement=' in ssd and "startConnector=\"controller.angle_rad\"" not in ssd
+        # the recorded signals as system outputs, the stroke's too (its own connector, not a connection)
+        assert ('<ssd:Connection startElement="controller" startConnector="angle_rad" '
+                'endConnector="controller.angle_rad" />' in ssd) == system_outputs
+        assert all(f'<ssd:Component name="{n}"' in ssd for n in ("controller", "tank", "servo", "feather"))
+        assert scene.master.periods == 1 and scene.master.t_end_s == 0.0
+        assert_same_scene(scene, load_scene("testbed").with_overrides(short))
         back = run_scene(package)
         if fmi_version == 3:
             assert_identical(direct, back)
@@ -151,6 +183,70 @@ def test_foreign_package_with_ssv_file_and_system_output_runs(mixed_ssp, tmp_pat
     assert np.array_equal(result["b.force_N"], reference["b.force_N"])
 
 
+def test_a_foreign_package_without_system_outputs_records_every_components_outputs(mixed_ssp, tmp_path):
+    """Nothing requested (no system output, recorder, metrics or --record): every output of every
+    component is recorded, and the run says so, rather than pruning the whole system away."""
+    ssd = FOREIGN_SSD.replace('<ssd:Connection startElement="b" startConnector="force_N" endConnector="force_out"/>', "")
+    ssd = ssd.replace('<ssd:Connector name="force_out" kind="output"><ssc:Real/></ssd:Connector>', "")
+    package = write_package(tmp_path / "silent.ssp", ssd, mixed_ssp, {"resources/params.ssv": FOREIGN_SSV})
+    master = {f"master.{key}": OSCILLATOR["master"][key] for key in ("rtol", "atol", "output_interval_s")}
+    result = run_scene(package, master)
+    scene = load_scene(package)
+    outputs = [f"{block}.{port}" for block in ("a", "b")
+               for port in read_model_description(scene.block(block).settings["fmu"]).modelVariables
+               for port in ([port.name] if port.causality == "output" else [])]
+    assert sorted(result.signals) == sorted(outputs) and "b.force_N" in outputs
+    assert sorted(result.info["instantiated"]) == ["a", "b"] and not result.info["pruned"]
+    assert any(note.startswith(f"no signals requested (no recorder, metrics or --record): recording every output "
+                               f"of every block ({len(outputs)} signals)") for note in result.info["notes"])
+    reference = run_scene(make_scene(OSCILLATOR, master={"t_end_s": 2.5}), {"b.coupling_stiffness_N_m": 50, "a.mass_kg": 2})
+    assert np.array_equal(result["b.force_N"], reference["b.force_N"])
+    # --record still records only what it names
+    assert list(run_scene(package, master, outputs=["a.position_m"]).signals) == ["a.position_m"]
+
+
+def _with_connector_units(mixed_ssp: Path, path: Path, units: dict[tuple[str, str], str], transform: str = "") -> Path:
+    """The package with units on component connectors {(component, connector): unit} and, with
+    `transform`, that child on the connection a.position_m -> b.other_position_m."""
+    root = ET.fromstring(zipfile.ZipFile(mixed_ssp).read(SSD_NAME))
+    for component in root.iterfind(".//ssd:Component", NS):
+        for connector in component.iterfind("ssd:Connectors/ssd:Connector", NS):
+            unit = units.get((component.get("name"), connector.get("name")))
+            if unit:
+                connector[0].set("unit", unit)
+    for connection in root.iterfind(".//ssd:Connection", NS):
+        if transform and (connection.get("startElement"), connection.get("endConnector")) == ("a", "other_position_m"):
+            connection.append(ET.fromstring(transform))
+    return write_package(path, ET.tostring(root, encoding="unicode"), mixed_ssp)
+
+
+def test_a_linear_transformation_between_components_is_a_gain_block(mixed_ssp, tmp_path):
+    """y = factor x + offset on a.position_m -> b.other_position_m runs as a featherstar gain
+    between them: the same numbers as the scene with that gain written by hand."""
+    transform = f'<ssc:LinearTransformation xmlns:ssc="{NS["ssc"]}" factor="0.5" offset="0.01"/>'
+    package = _with_connector_units(mixed_ssp, tmp_path / "linear.ssp", {}, transform)
+    scene = load_scene(package)
+    assert scene.block("transform_0").settings.to_plain() == {"gain": 0.5, "offset": 0.01, "unit_in": "", "unit_out": ""}
+    by_hand = dict(MIXED, connections=[c for c in MIXED["connections"] if c != "a.position_m -> b.other_position_m"]
+                   + ["a.position_m -> transform_0.u", "transform_0.y -> b.other_position_m"],
+                   blocks={**MIXED["blocks"], "transform_0": {"kind": "gain", "gain": 0.5, "offset": 0.01,
+                                                             "unit_in": "", "unit_out": ""}})
+    back = run_scene(package)
+    assert_identical(back, run_scene(make_scene(OSCILLATOR, **by_hand), OVERRIDES))
+    assert any("units not checked" in note and "transform_0.y -> b.other_position_m" in note
+               for note in back.info["notes"])
+
+
+def test_connectors_with_different_units_are_refused_and_equal_ones_accepted(mixed_ssp, tmp_path):
+    same = _with_connector_units(mixed_ssp, tmp_path / "same.ssp", {("a", "position_m"): "m", ("b", "other_position_m"): "m"})
+    load_scene(same)
+    differ = _with_connector_units(mixed_ssp, tmp_path / "differ.ssp",
+                                   {("a", "position_m"): "m", ("b", "other_position_m"): "mm"})
+    with pytest.raises(SceneError, match=r"ssd:Connection a.position_m -> b.other_position_m: its connectors' "
+                                         r"units differ \('m' -> 'mm'\); SSP tools convert"):
+        load_scene(differ)
+
+
 def mutated(mixed_ssp: Path, tmp_path: Path, old: str, new: str, count: int = 1) -> Path:
     ssd = zipfile.ZipFile(mixed_ssp).read(SSD_NAME).decode()
     assert old in ssd, old
@@ -160,8 +256,18 @@ def mutated(mixed_ssp: Path, tmp_path: Path, old: str, new: str, count: int = 1)
 @pytest.mark.parametrize("old, new, message", [
     ('<ssd:Connection startElement="a" startConnector="position_m" endElement="b" endConnector="other_position_m" />',
      '<ssd:Connection startElement="a" startConnector="position_m" endElement="b" endConnector="other_position_m">'
-     '<ssc:LinearTransformation factor="2"/></ssd:Connection>',
-     "ssc:LinearTransformation on the ssd:Connection a.position_m -> b.other_position_m"),
+     '<ssc:BooleanMappingTransformation/></ssd:Connection>',
+     "ssc:BooleanMappingTransformation on the ssd:Connection a.position_m -> b.other_position_m: featherstar maps "
+     "only ssc:LinearTransformation"),
+    ('<ssd:Connection startElement="g" startConnector="y" endConnector="scale.u" />',
+     '<ssd:Connection startElement="g" startConnector="y" endConnector="scale.u"><ssc:LinearTransformation/>'
+     '</ssd:Connection>',
+     "ssc:LinearTransformation on the ssd:Connection g.y -> scale.u: featherstar maps only "
+     "ssc:LinearTransformation (transformations between components only)"),
+    ('<ssd:Connection startElement="a" startConnector="position_m" endElement="b" endConnector="other_position_m" />',
+     '<ssd:Connection startElement="a" startConnector="position_m" endElement="b" endConnector="other_position_m">'
+     '<ssc:LinearTransformation factor="inf"/></ssd:Connection>',
+     "ssc:LinearTransformation on the ssd:Connection a.position_m -> b.other_position_m: factor = inf"),
     ('endElement="b" endConnector="other_velocity_m_s"', 'endElement="nobody" endConnector="other_velocity_m_s"',
      "ssd:Connection a.velocity_m_s -> nobody.other_velocity_m_s names element 'nobody', which is not a component"),
     ('endElement="b" endConnector="other_velocity_m_s"', 'endElement="b"',
@@ -181,10 +287,12 @@ def mutated(mixed_ssp: Path, tmp_path: Path, old: str, new: str, count: int = 1)
      "ssd:ParameterMapping in the ssd:ParameterBinding of ssd:Component 'a'"),
     ('<fs:Scene format="json">{', '<fs:Scene format="json">{{',
      "ssc:Annotation 'org.featherstar.scene': fs:Scene is not valid JSON"),
-    ('startConnector="source.u"', 'startConnector="elsewhere.u"',
-     "ssd:Connection elsewhere.u -> g.u: the system has no input connector 'elsewhere.u'"),
-    ("</ssd:System>", '</ssd:System><ssd:DefaultExperiment startTime="1.0" stopTime="3.0" />',
+    ('endConnector="scale.u"', 'endConnector="elsewhere.u"',
+     "ssd:Connection g.y -> elsewhere.u: the system has no output connector 'elsewhere.u'"),
+    ('<ssd:DefaultExperiment startTime="0.0"', '<ssd:DefaultExperiment startTime="1.0"',
      "ssd:DefaultExperiment startTime = 1.0: featherstar runs start at t = 0"),
+    ('"stand_ins": [\n  "source"\n ]', '"stand_ins": [\n  "nobody"\n ]',
+     "stand-in 'nobody' is no ssd:Component of the system"),
     ("<ssd:Elements>", "<ssd:SignalDictionaries/><ssd:Elements>",
      "ssd:SignalDictionaries in ssd:System 'oscillator': featherstar cannot map it"),
 ])

@@ -11,7 +11,7 @@ enum { M_INSTANTIATED, M_INIT, M_EVENT, M_CONT, M_STEP, M_TERMINATED };
 typedef struct {
   Model m;
   double time;
-  int mode, cs, next_def;
+  int mode, cs, next_def, terminated;
   double next_t;
   char name[64];
   fmi2CallbackFunctions cb;
@@ -110,7 +110,7 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
   return fmi2OK;
 }
 fmi2Status fmi2Terminate(fmi2Component c) { ((Inst*)c)->mode = M_TERMINATED; return fmi2OK; }
-fmi2Status fmi2Reset(fmi2Component c) { Inst* s = (Inst*)c; m_start(&s->m); s->mode = M_INSTANTIATED; s->time = 0; return fmi2OK; }
+fmi2Status fmi2Reset(fmi2Component c) { Inst* s = (Inst*)c; m_start(&s->m); s->mode = M_INSTANTIATED; s->time = 0; s->terminated = 0; return fmi2OK; }
 
 fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate* st) {
   Inst* copy = (Inst*)malloc(sizeof(Inst));
@@ -191,13 +191,21 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean noSet
     for (int k = 0; k < n; k++) rk4(s, t0 + k * dt, dt);
     s->time = stop;
     if (s->next_def && fabs(s->time - s->next_t) <= eps) m_event(&s->m, s->time, &s->next_def, &s->next_t);
+    /* the model is done: stop here and say so the FMI 2.0 way (fmi2Discard + fmi2Terminated) */
+    if (m_terminate(&s->m)) { s->terminated = 1; return fmi2Discard; }
   }
   s->time = t_end;
   return fmi2OK;
 }
 fmi2Status fmi2CancelStep(fmi2Component c) { return fmi2Error; }
 fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind k, fmi2Status* v) { return fmi2Error; }
-fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind k, fmi2Real* v) { return fmi2Error; }
+fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind k, fmi2Real* v) {
+  if (k != fmi2LastSuccessfulTime) return fmi2Error;
+  *v = ((Inst*)c)->time; return fmi2OK;
+}
 fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind k, fmi2Integer* v) { return fmi2Error; }
-fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind k, fmi2Boolean* v) { return fmi2Error; }
+fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind k, fmi2Boolean* v) {
+  if (k != fmi2Terminated) return fmi2Error;
+  *v = ((Inst*)c)->terminated ? fmi2True : fmi2False; return fmi2OK;
+}
 fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind k, fmi2String* v) { return fmi2Error; }

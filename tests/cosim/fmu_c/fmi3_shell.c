@@ -258,9 +258,10 @@ fmi3Status fmi3DoStep(fmi3Instance i, fmi3Float64 t, fmi3Float64 h, fmi3Boolean 
     for (int k = 0; k < n; k++) rk4(s, t0 + k * dt, dt);
     s->time = stop;
     if (s->next_def && fabs(s->time - s->next_t) <= eps) m_event(&s->m, s->time, &s->next_def, &s->next_t);
+    if (m_terminate(&s->m)) break;  /* the model is done: stop at the event that ended it */
   }
-  s->time = t_end;
-  *last = t_end;
+  if (!m_terminate(&s->m)) s->time = t_end;
+  *last = s->time;
   *term = m_terminate(&s->m) ? fmi3True : fmi3False;
   return fmi3OK;
 }
