@@ -61,17 +61,25 @@ OUTPUTS = {
 }
 
 
+def _number(values: Mapping[str, float], key: str, where: str) -> float:
+    """values[key] as a float, or a ModelError naming the key (a boolean or a text is no number)."""
+    value = values[key]
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ModelError(f"{where}: {key} = {value!r} is not a number")
+    return float(value)
+
+
 def _apply(stroke: Stroke, values: Mapping[str, float], where: str) -> Stroke:
-    times = {k: float(values[k]) for k in TIME_KEYS if k in values}
-    ratios = {k: float(values[k]) for k in RATIO_KEYS if k in values}
+    times = {k: _number(values, k, where) for k in TIME_KEYS if k in values}
+    ratios = {k: _number(values, k, where) for k in RATIO_KEYS if k in values}
     if times and ratios:
         raise ModelError(f"{where}: give the stroke by times ({', '.join(times)}) or by log-ratios "
                          f"({', '.join(ratios)}), not both")
     if "amplitude_deg" in values:
-        stroke = dataclasses.replace(stroke, amplitude_deg=float(values["amplitude_deg"]))
+        stroke = dataclasses.replace(stroke, amplitude_deg=_number(values, "amplitude_deg", where))
     if times:
         stroke = dataclasses.replace(stroke, **times)
-    period = float(values["period_s"]) if "period_s" in values else None
+    period = _number(values, "period_s", where) if "period_s" in values else None
     if ratios:
         current = dict(zip(RATIO_KEYS, stroke.log_ratios()))
         current.update(ratios)
@@ -121,7 +129,8 @@ class Command:
 
 def resolve_command(settings: Mapping[str, float], overrides: Mapping[str, float], where: str) -> Command:
     """The command path a controller table plus the user's overrides describe."""
-    values = {k: float(v) for source in (settings, overrides) for k, v in source.items() if k in COMMAND_KEYS}
+    values = {k: _number(source, k, where) for source in (settings, overrides) for k in source
+              if k in COMMAND_KEYS}
     try:
         return Command(**values)
     except ModelError as exc:
