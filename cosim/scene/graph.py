@@ -27,12 +27,13 @@ from typing import Iterable, Sequence
 from ..errors import SceneError
 from ..fmi.fmi_types import conversion_problem
 from ..sccs import cycle_through, strongly_connected
-from .blocks import ResolvedBlock, resolve
+from .blocks import KINDS, ResolvedBlock, resolve
 from .data import FrozenMap, PortRef, Scene
 from .specs import Connection
 from .fmu_ports import expand_array_connections, expand_array_refs, hold_unconnected_inputs, keep_used_outputs
 from .guards import step_problems
 from .plan import Loop, Plan
+from .settings import close_match
 
 DIMENSIONLESS = {"1", "-"}
 
@@ -109,10 +110,16 @@ def plan(scene: Scene, outputs: Sequence[str] | None = None) -> Plan:
     for dup in sorted({n for n in names if names.count(n) > 1}):
         problems.append(f"block name '{dup}' is used twice")
     for spec in scene.blocks:
+        if spec.kind not in KINDS:
+            problems.append(f"block '{spec.name}': unknown block kind '{spec.kind}'{close_match(spec.kind, KINDS)} "
+                            f"(known kinds: {', '.join(KINDS)})")
+            continue
         try:
             resolved[spec.name] = resolve(spec)
         except SceneError as exc:
             problems.extend(exc.problems)
+        except (TypeError, ValueError, ArithmeticError) as exc:   # a kind meeting data it cannot read
+            problems.append(f"block '{spec.name}' ({spec.kind}): a setting it cannot read: {exc}")
     amplitude_notes = _share_parameters(resolved)
     known = ", ".join(names)
 
@@ -184,6 +191,8 @@ def plan(scene: Scene, outputs: Sequence[str] | None = None) -> Plan:
             requested.extend(rb.signals)
     requested = expand_array_refs(requested, resolved)
     metric_refs = []
+    for ref in requested:
+        check_output(ref, f"signal {ref}")
     for attr in ("thrust", "angle", "speed", "position"):
         text = getattr(scene.metrics, attr)
         if text:
@@ -191,6 +200,8 @@ def plan(scene: Scene, outputs: Sequence[str] | None = None) -> Plan:
                 metric_refs.append(PortRef.parse(text, f"metrics.{attr}"))
             except SceneError as exc:
                 problems.extend(exc.problems)
+                continue
+            check_output(metric_refs[-1], f"metrics.{attr} = '{text}'")
     record_all_notes = []
     if outputs is None and not requested and not metric_refs:
         # A system from elsewhere (an SSP package without system outputs) names nothing to record:
@@ -199,8 +210,6 @@ def plan(scene: Scene, outputs: Sequence[str] | None = None) -> Plan:
         if requested:
             record_all_notes.append(f"no signals requested (no recorder, metrics or --record): recording every "
                                     f"output of every block ({len(requested)} signals)")
-    for ref in [*requested, *metric_refs]:
-        check_output(ref, f"signal {ref}")
     problems.extend(scene.master.check())
     problems.extend(scene.metrics.check())
     if problems:

@@ -1,6 +1,6 @@
 """Checks that refuse a run before any work when it cannot give a result: a run whose recorded
-signals would not fit in memory, a metric window with no whole period (an FMU archive's checks
-are featherstar.cosim.fmi.archive)."""
+signals would not fit in memory, a metric window with no whole period, a metric period spanning
+too few samples (an FMU archive's checks are featherstar.cosim.fmi.archive)."""
 from __future__ import annotations
 
 import logging
@@ -14,6 +14,9 @@ log = logging.getLogger(__name__)
 MEMORY_FRACTION = 0.5       # of the memory available now: leave room for FMUs and the figure
 _BYTES_PER_VALUE = 40       # a Python float in a row list (24 + 8) plus its numpy copy (8)
 _BYTES_PER_ROW = 120        # the row list, the time stamp and the CSV/figure copies
+#: A metric period must span this many recorded samples: the per-period thrust ratio integrates
+#: each period's positive and negative thrust apart, and a stroke has four phases.
+MIN_SAMPLES_PER_PERIOD = 20
 
 
 def available_memory_bytes() -> int:
@@ -55,11 +58,21 @@ def check_run_size(plan: Plan, available_bytes: int | None = None) -> None:
 
 
 def check_metric_window(plan: Plan) -> None:
-    """Refuse a settling time that leaves no whole period to measure (the metrics would
-    silently fall back to the transient)."""
+    """Refuse a metric period spanning fewer than MIN_SAMPLES_PER_PERIOD recorded samples, and a
+    settling time that leaves no whole period to measure (the metrics would silently fall back
+    to the transient)."""
     metrics, period_s = plan.scene.metrics, plan.period_s
     if not period_s or not metrics.thrust:
         return
+    master = plan.scene.master
+    grid_s = master.output_interval_s if master.coupling == "strong" else master.step_s
+    grid_key = "master.output_interval_s" if master.coupling == "strong" else "master.step_s"
+    if period_s / grid_s < MIN_SAMPLES_PER_PERIOD:
+        what = (f"metrics.period_s = {metrics.period_s:g}" if metrics.period_s
+                else f"the stroke period ({period_s:g} s)")
+        raise SceneError(f"{what} spans {period_s / grid_s:.3g} samples of {grid_key} = {grid_s:g} s; a "
+                         f"metric period needs at least {MIN_SAMPLES_PER_PERIOD}: refine the grid or "
+                         "lengthen the period", plan.scene.name)
     run_periods = plan.t_end_s / period_s
     if metrics.settle_periods + 1 > run_periods + 1e-9:
         raise SceneError(f"metrics.settle_periods = {metrics.settle_periods:g} leaves no whole "

@@ -1,113 +1,139 @@
-"""Every key a scene lets you set (`--set KEY=VALUE`), with its value, unit, range and meaning:
-`scene_settings(plan)`, what `featherstar scenes SCENE` prints.
+"""The declared schema of a scene's [master] and [metrics] tables: each key's type, range, unit
+and meaning, in one place, from which both the checks (`read_setting`, `setting_problems`) and
+the parameter listing (`listing`) are generated.
 
-The keys come from where they are interpreted, so the list cannot drift from what `--set`
-accepts: the master and metrics tables (their fields and docstrings), each model block's
-parameters (unit, range, description: fmu_src models) and build options, an FMU file's
-parameters, a constant's outputs, and Python blocks that describe their own keys (a block object
-with `settings() -> list[Setting]`, as the stroke controller has).
+A key is declared once, as a dataclass field whose metadata holds its `Setting`; its type is the
+type of its default. A value from a TOML file must already have that type (an integer is a valid
+float); a --set value is text and is parsed first (featherstar.cosim.scene.specs.parse_value).
 """
 from __future__ import annotations
 
-import dataclasses
+import difflib
 import math
-import re
-from dataclasses import dataclass
-from typing import Any, Mapping
+from dataclasses import dataclass, field, fields
+from typing import Any, Iterator
 
-from .plan import Plan
+from ..errors import SceneError
+
+TYPE_NAMES = {bool: "bool", int: "int", float: "float", str: "str"}
 
 
 @dataclass(frozen=True)
 class Setting:
-    """One settable key: `key` as --set takes it, its value in this scene, unit, range, meaning."""
+    """What one key may hold. Numbers: lo <= value <= hi (either bound optional), or exactly 0
+    when `zero_means` says what 0 stands for; strings: one of `choices`, or a "block.port"
+    signal name (or empty) when `signal`."""
 
-    key: str
-    value: Any
+    meaning: str
     unit: str = ""
-    range: str = ""
-    description: str = ""
-    kind: str = "parameter"   # parameter | build option | setting
+    lo: float | None = None
+    hi: float | None = None
+    zero_means: str = ""
+    choices: tuple[str, ...] = ()
+    signal: bool = False
 
-
-def _range(minimum: float, maximum: float, exclusive_minimum: bool = False) -> str:
-    if not (math.isfinite(minimum) or math.isfinite(maximum)):
-        return ""
-    return f"{'(' if exclusive_minimum else '['}{minimum:g}, {maximum:g}]"
-
-
-def _field_docs(cls: Any) -> dict[str, str]:
-    """Each field's text in a dataclass docstring written as `name   meaning` lines (MasterSpec)."""
-    docs: dict[str, str] = {}
-    current = None
-    for line in (cls.__doc__ or "").splitlines():
-        match = re.match(r"\s{4}(\w+(?:, \w+)*)\s{2,}(.*)", line)
-        if match:
-            current = [n.strip() for n in match.group(1).split(",")]
-            for name in current:
-                docs[name] = match.group(2).strip()
-        elif current and line.startswith(" " * 8) and line.strip():
-            for name in current:
-                docs[name] += " " + line.strip()
+    def bounds_text(self) -> str:
+        if self.lo is not None and self.hi is not None:
+            text = f"in [{self.lo:g}, {self.hi:g}]"
+        elif self.lo is not None:
+            text = f">= {self.lo:g}"
+        elif self.hi is not None:
+            text = f"<= {self.hi:g}"
         else:
-            current = None
-    return docs
+            text = ""
+        if self.zero_means and self.lo is not None and self.lo > 0:
+            text = f"0 ({self.zero_means}) or {text}"
+        return text
 
 
-def _unit_from_name(name: str) -> str:
-    for suffix, unit in (("_deg", "deg"), ("_rad_s", "rad/s"), ("_rad", "rad"), ("_s", "s"), ("_N", "N"),
-                         ("_m_s", "m/s"), ("_m", "m")):
-        if name.endswith(suffix):
-            return unit
-    return ""
+def setting(default: Any, meaning: str, unit: str = "", **limits: Any) -> Any:
+    """A dataclass field declaring one key: its default, meaning, unit and limits (`Setting`)."""
+    return field(default=default, metadata={"setting": Setting(meaning, unit, **limits)})
 
 
-def _section(prefix: str, spec: Any) -> list[Setting]:
-    docs = _field_docs(type(spec))
-    return [Setting(f"{prefix}.{f.name}", getattr(spec, f.name), _unit_from_name(f.name), "",
-                    docs.get(f.name, ""), "setting") for f in dataclasses.fields(spec)]
+def declared(cls: Any) -> Iterator[tuple[str, type, Any, Setting]]:
+    """(name, type, default, Setting) of every declared key of a settings dataclass."""
+    for f in fields(cls):
+        yield f.name, type(f.default), f.default, f.metadata["setting"]
 
 
-def scene_settings(plan: Plan) -> list[Setting]:
-    """Every settable key of the planned scene, master and metrics first, then block by block."""
-    scene = plan.scene
-    out = _section("master", scene.master) + _section("metrics", scene.metrics)
-    for name in scene.block_names:
-        rb = plan.blocks[name]
-        if rb.model is not None:
-            for option, value in sorted(dict(rb.model.options).items()):
-                out.append(Setting(f"{name}.{option}", value, "", "", "build option (changes the equations)",
-                                   "build option"))
-            for p in rb.model.parameters:
-                unit = "" if p.unit in ("1", "-") else p.unit
-                out.append(Setting(f"{name}.{p.name}", rb.parameters.get(p.name, p.default), unit,
-                                   _range(p.minimum, p.maximum, p.exclusive_minimum), p.description))
-        elif rb.fmu_info is not None:
-            info = rb.fmu_info
-            for pname in sorted(info.parameters):
-                out.append(Setting(f"{name}.{pname}", rb.parameters.get(pname, "(the FMU's start value)"), "",
-                                   "", info.parameter_types.get(pname, "")))
-        elif rb.obj is not None and callable(getattr(rb.obj, "settings", None)):
-            out += [dataclasses.replace(s, key=f"{name}.{s.key}") for s in rb.obj.settings()]
-        elif rb.spec.kind == "constant":
-            for port, entry in dict(rb.spec.settings.get("outputs", {})).items():
-                value = rb.spec.overrides.get(port, entry.get("value") if isinstance(entry, Mapping) else entry)
-                unit = entry.get("unit", "") if isinstance(entry, Mapping) else ""
-                out.append(Setting(f"{name}.{port}", value, unit, "", "constant output"))
-    return out
+def close_match(word: str, candidates: Any) -> str:
+    """"; did you mean ..." with the closest candidate, or nothing."""
+    match = difflib.get_close_matches(word, list(candidates), n=1, cutoff=0.6)
+    return f"; did you mean '{match[0]}'?" if match else ""
 
 
-def format_settings(settings: list[Setting]) -> str:
-    """A plain-text table, one key per line, grouped by block."""
-    lines, group = [], None
-    width = max((len(s.key) for s in settings), default=0)
-    for s in settings:
-        head = s.key.split(".")[0]
-        if head != group:
-            lines.append(f"[{head}]")
-            group = head
-        value = f"{s.value:g}" if isinstance(s.value, float) else str(s.value)
-        unit = f" {s.unit}" if s.unit else ""
-        extra = "  ".join(x for x in (s.range, s.description) if x)
-        lines.append(f"  {s.key:<{width}}  {value + unit:<18}  {extra}".rstrip())
-    return "\n".join(lines)
+def unknown_key(section: str, key: str, known: Any) -> str:
+    """The refusal of a key the section does not have, with the closest known one."""
+    known = list(known)
+    return f"{section} has no setting '{key}'{close_match(key, known)} (it has: {', '.join(known)})"
+
+
+def read_setting(section: str, key: str, kind: type, raw: Any, value: Any, spec: Setting) -> Any:
+    """`value` (raw, or raw parsed from --set text) as the key's type, or a SceneError naming
+    section.key, the value given and what was expected. Ranges are `setting_problems`'."""
+    expected = spec.bounds_text() or (f"one of {', '.join(spec.choices)}" if spec.choices else "")
+    hint = f" ({spec.meaning}; expected {TYPE_NAMES[kind]}{' ' + expected if expected else ''})"
+    bad = SceneError(f"{section}.{key} = {raw!r} is not a valid {TYPE_NAMES[kind]}{hint}")
+    if kind is bool:
+        if not isinstance(value, bool):
+            raise bad
+        return value
+    if kind is str:   # text stays text: a --set value is a string before any parsing
+        if not isinstance(raw, str):
+            raise bad
+        return raw.strip()
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise bad
+    if kind is int:
+        if not (math.isfinite(value) and float(value).is_integer()):
+            raise bad
+        return int(value)
+    return float(value)
+
+
+def value_problem(section: str, key: str, value: Any, spec: Setting) -> str | None:
+    """Why a value of the right type is out of its declared range (None: it is in range)."""
+    name = f"{section}.{key} = {value!r}"
+    if isinstance(value, str):
+        if spec.choices and value not in spec.choices:
+            return f"{name} is not one of {', '.join(spec.choices)}{close_match(value, spec.choices)}"
+        if spec.signal and value:
+            block, dot, port = value.partition(".")
+            if not (dot and block.strip() and port.strip()):
+                return f"{name} must name a recorded signal as 'block.port' ({spec.meaning})"
+        return None
+    if isinstance(value, bool):
+        return None
+    if spec.zero_means and value == 0:
+        return None
+    ok = math.isfinite(value) and (spec.lo is None or value >= spec.lo) and (spec.hi is None or value <= spec.hi)
+    if ok:
+        return None
+    what = "an integer" if isinstance(value, int) else "a finite number"
+    unit = f" {spec.unit}" if spec.unit and spec.unit != "1" else ""
+    return f"{name} must be {what} {spec.bounds_text()}{unit} ({spec.meaning})"
+
+
+def setting_problems(obj: Any, section: str) -> list[str]:
+    """Every declared key of `obj` whose value is out of range, one line each."""
+    problems = []
+    for name, _kind, _default, spec in declared(type(obj)):
+        problem = value_problem(section, name, getattr(obj, name), spec)
+        if problem:
+            problems.append(problem)
+    return problems
+
+
+def listing(cls: Any, section: str) -> list[str]:
+    """One line per key: name, type, default, range and unit, meaning (`featherstar` help text,
+    docs)."""
+    rows = []
+    for name, kind, default, spec in declared(cls):
+        allowed = spec.bounds_text() or ("|".join(spec.choices) if spec.choices else
+                                         "block.port or empty" if spec.signal else "")
+        unit = "" if spec.unit in ("", "1") else f" {spec.unit}"
+        zero = f" (0 = {spec.zero_means})" if spec.zero_means and "(" not in allowed else ""
+        rows.append(f"{section}.{name:<22} {TYPE_NAMES[kind]:<5} default {default!r:<10} "
+                    f"{allowed}{unit}  {spec.meaning}{zero}".rstrip())
+    return rows

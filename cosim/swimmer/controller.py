@@ -45,7 +45,7 @@ from typing import Any, Mapping
 
 from ...fmu_src.errors import ModelError
 from ..framework.block import Port, TimeSource
-from ..scene.settings import Setting
+from ..scene.listing import SettableKey
 from .stroke import Stroke, root_motion, root_motion_function, stroke_from_log_ratios
 
 TIME_KEYS = ("t_up_s", "t_hold_up_s", "t_down_s", "t_hold_down_s")
@@ -62,17 +62,25 @@ OUTPUTS = {
 }
 
 
+def _number(values: Mapping[str, float], key: str, where: str) -> float:
+    """values[key] as a float, or a ModelError naming the key (a boolean or a text is no number)."""
+    value = values[key]
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ModelError(f"{where}: {key} = {value!r} is not a number")
+    return float(value)
+
+
 def _apply(stroke: Stroke, values: Mapping[str, float], where: str) -> Stroke:
-    times = {k: float(values[k]) for k in TIME_KEYS if k in values}
-    ratios = {k: float(values[k]) for k in RATIO_KEYS if k in values}
+    times = {k: _number(values, k, where) for k in TIME_KEYS if k in values}
+    ratios = {k: _number(values, k, where) for k in RATIO_KEYS if k in values}
     if times and ratios:
         raise ModelError(f"{where}: give the stroke by times ({', '.join(times)}) or by log-ratios "
                          f"({', '.join(ratios)}), not both")
     if "amplitude_deg" in values:
-        stroke = dataclasses.replace(stroke, amplitude_deg=float(values["amplitude_deg"]))
+        stroke = dataclasses.replace(stroke, amplitude_deg=_number(values, "amplitude_deg", where))
     if times:
         stroke = dataclasses.replace(stroke, **times)
-    period = float(values["period_s"]) if "period_s" in values else None
+    period = _number(values, "period_s", where) if "period_s" in values else None
     if ratios:
         current = dict(zip(RATIO_KEYS, stroke.log_ratios()))
         current.update(ratios)
@@ -122,7 +130,8 @@ class Command:
 
 def resolve_command(settings: Mapping[str, float], overrides: Mapping[str, float], where: str) -> Command:
     """The command path a controller table plus the user's overrides describe."""
-    values = {k: float(v) for source in (settings, overrides) for k, v in source.items() if k in COMMAND_KEYS}
+    values = {k: _number(source, k, where) for source in (settings, overrides) for k in source
+              if k in COMMAND_KEYS}
     try:
         return Command(**values)
     except ModelError as exc:
@@ -147,25 +156,25 @@ class StrokeController(TimeSource):
     def period_s(self) -> float:
         return self.stroke.period_s
 
-    def settings(self) -> list[Setting]:
+    def settable_keys(self) -> list[SettableKey]:
         """The keys --set takes on a stroke block, with this stroke's values (the period rule:
         `period_s` alone scales the four times; the log ratios re-shape them at the same period)."""
         s, c = self.stroke, self.command
         up_down, hold_up_down, hold_move = s.log_ratios()
         return [
-            Setting("t_up_s", s.t_up_s, "s", "(0, inf)", "rise (power stroke up)"),
-            Setting("t_hold_up_s", s.t_hold_up_s, "s", "[0, inf)", "hold at the top"),
-            Setting("t_down_s", s.t_down_s, "s", "(0, inf)", "fall"),
-            Setting("t_hold_down_s", s.t_hold_down_s, "s", "[0, inf)", "hold at the bottom"),
-            Setting("period_s", s.period_s, "s", "(0, inf)", "alone: scales the four times"),
-            Setting("amplitude_deg", s.amplitude_deg, "deg", "(0, 180]",
+            SettableKey("t_up_s", s.t_up_s, "s", "(0, inf)", "rise (power stroke up)"),
+            SettableKey("t_hold_up_s", s.t_hold_up_s, "s", "[0, inf)", "hold at the top"),
+            SettableKey("t_down_s", s.t_down_s, "s", "(0, inf)", "fall"),
+            SettableKey("t_hold_down_s", s.t_hold_down_s, "s", "[0, inf)", "hold at the bottom"),
+            SettableKey("period_s", s.period_s, "s", "(0, inf)", "alone: scales the four times"),
+            SettableKey("amplitude_deg", s.amplitude_deg, "deg", "(0, 180]",
                     f"peak to peak, centred on zero: {s.amplitude_deg:g} means +-{s.amplitude_deg / 2:g} deg"),
-            Setting("log10_up_down", up_down, "", "", "log10 t_up/t_down at the same period"),
-            Setting("log10_hold_up_down", hold_up_down, "", "", "log10 t_hold_up/t_hold_down"),
-            Setting("log10_hold_move", hold_move, "", "", "log10 (holds)/(moves)"),
-            Setting("sample_period_s", c.sample_period_s, "s", "[0, inf)",
+            SettableKey("log10_up_down", up_down, "", "", "log10 t_up/t_down at the same period"),
+            SettableKey("log10_hold_up_down", hold_up_down, "", "", "log10 t_hold_up/t_hold_down"),
+            SettableKey("log10_hold_move", hold_move, "", "", "log10 (holds)/(moves)"),
+            SettableKey("sample_period_s", c.sample_period_s, "s", "[0, inf)",
                     "send the command as samples this far apart (0: continuous)"),
-            Setting("rate_limit_rad_s", c.rate_limit_rad_s, "rad/s", "[0, inf)",
+            SettableKey("rate_limit_rad_s", c.rate_limit_rad_s, "rad/s", "[0, inf)",
                     "limit the sampled command's rate (0: none)"),
         ]
 

@@ -8,13 +8,33 @@ W is the window of whole stroke periods after `settle_periods` periods of transi
 integrated as the piecewise-linear interpolant of the samples, split exactly at zero crossings,
 so TR does not depend on where the samples fall relative to a sign change. Per-period values are
 reported too: flapped feathers are chaotic (physics notes §9), judge them on windowed statistics.
+
+Each metric states what it needs (`preconditions`): a known period, at least one whole period in
+the window, a period spanning MIN_SAMPLES_PER_PERIOD samples, finite samples, a negative impulse
+for TR; a result is complete only when every one holds (featherstar.cosim.swimmer.run). The
+metrics are still computed when one fails, so that the summary shows what went wrong.
 """
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+
+from ..scene.preflight import MIN_SAMPLES_PER_PERIOD
+
+
+@dataclass(frozen=True)
+class Precondition:
+    """One thing a metric needs of the recording; `reason` says why it fails ("" = it holds)."""
+
+    name: str
+    reason: str = ""
+
+    @property
+    def holds(self) -> bool:
+        return not self.reason
 
 
 def window(t_end: float, period: float | None, settle_periods: float, t0: float = 0.0) -> tuple[float, float, int]:
@@ -80,6 +100,54 @@ def thrust_metrics(t: np.ndarray, thrust: np.ndarray, a: float, b: float, period
     return out
 
 
+def window_preconditions(t: np.ndarray, a: float, b: float, period: float | None, n_periods: int,
+                         settle_periods: float) -> list[Precondition]:
+    """What every windowed metric needs: a period, a whole one after settling, enough samples in it."""
+    if not period:
+        return [Precondition("period_known", "no period: metrics.period_s = 0 and no stroke block gives "
+                                             "one; the window is the whole run, transient included")]
+    out = [Precondition("period_known")]
+    if n_periods < 1:
+        out.append(Precondition("whole_period_in_window",
+                                f"the run of {float(t[-1] - t[0]):.4g} s holds no whole period of {period:.4g} s "
+                                f"after settle_periods = {settle_periods:g}"))
+    else:
+        out.append(Precondition("whole_period_in_window"))
+    inside = t[(t >= a) & (t <= b)]
+    step = float(np.median(np.diff(inside))) if len(inside) > 1 else float(b - a)
+    samples = period / step if step > 0 else 0.0
+    out.append(Precondition("samples_per_period", "" if samples >= MIN_SAMPLES_PER_PERIOD else
+                            f"a period of {period:.4g} s spans {samples:.3g} samples of {step:.4g} s; "
+                            f"at least {MIN_SAMPLES_PER_PERIOD} are needed"))
+    return out
+
+
+def finite_precondition(name: str, t: np.ndarray, y: np.ndarray, a: float, b: float) -> Precondition:
+    """The signal is finite over the window (the samples inside it and the two it interpolates at
+    its ends)."""
+    lo = max(int(np.searchsorted(t, a, side="right")) - 1, 0)
+    hi = min(int(np.searchsorted(t, b, side="left")) + 1, len(t))
+    bad = ~np.isfinite(np.asarray(y[lo:hi], dtype=float))
+    if not bad.any():
+        return Precondition(f"finite_{name}")
+    first = float(t[lo + int(np.argmax(bad))])
+    return Precondition(f"finite_{name}", f"{int(bad.sum())} non-finite {name} samples in the window "
+                                          f"(the first at t = {first:.6g} s)")
+
+
+def thrust_preconditions(metrics: dict[str, Any]) -> list[Precondition]:
+    """TR (Eq. 3) needs a negative impulse; both thrust metrics need finite values."""
+    neg = metrics.get("negative_impulse_Ns", math.nan)
+    return [Precondition("negative_impulse", "" if neg > 0 else
+                         "no negative thrust in the window: the thrust ratio (Eq. 3) is undefined"),
+            finite_thrust_metrics(metrics)]
+
+
+def finite_thrust_metrics(metrics: dict[str, Any]) -> Precondition:
+    bad = [k for k in ("thrust_ratio", "mean_thrust_N") if not math.isfinite(metrics.get(k, math.nan))]
+    return Precondition("finite_thrust_metrics", f"{', '.join(bad)} not finite" if bad else "")
+
+
 def speed_metrics(t: np.ndarray, a: float, b: float, position: np.ndarray | None,
                   speed: np.ndarray | None) -> dict[str, Any]:
     if position is not None:
@@ -95,9 +163,47 @@ def scene_metrics(metrics_spec: Any, period: float | None, t: np.ndarray,
     whole periods after settling, thrust (Eq. 2, Eq. 3) and the robot's speed."""
     a, b, k = window(float(t[-1]), period, metrics_spec.settle_periods, float(t[0]))
     out: dict[str, Any] = {"window_s": [a, b], "periods_used": k}
+    checks: list[Precondition] = []
+    if metrics_spec.thrust or metrics_spec.position or metrics_spec.speed:
+        checks += window_preconditions(t, a, b, period, k, metrics_spec.settle_periods)
     if metrics_spec.thrust:
-        out.update(thrust_metrics(t, signals[metrics_spec.thrust], a, b, period, k))
+        thrust = signals[metrics_spec.thrust]
+        checks.append(finite_precondition("thrust", t, thrust, a, b))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            out.update(thrust_metrics(t, thrust, a, b, period, k))
+        checks += thrust_preconditions(out)
     if metrics_spec.position or metrics_spec.speed:
-        out.update(speed_metrics(t, a, b, signals.get(metrics_spec.position) if metrics_spec.position else None,
-                                 signals.get(metrics_spec.speed) if metrics_spec.speed else None))
+        name = metrics_spec.position or metrics_spec.speed
+        checks.append(finite_precondition("position" if metrics_spec.position else "speed", t, signals[name], a, b))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            out.update(speed_metrics(t, a, b, signals.get(metrics_spec.position) if metrics_spec.position else None,
+                                     signals.get(metrics_spec.speed) if metrics_spec.speed else None))
+        finite = math.isfinite(out["mean_speed_m_s"])
+        checks.append(Precondition("finite_speed_metric", "" if finite else "mean_speed_m_s not finite"))
+    out["preconditions"] = {c.name: c.reason or "holds" for c in checks}
     return out
+
+
+def failed_preconditions(summary: dict[str, Any]) -> dict[str, str]:
+    """The preconditions of a summary's metrics that do not hold, by name, with the reason."""
+    return {name: reason for name, reason in (summary.get("preconditions") or {}).items() if reason != "holds"}
+
+
+def judge_valid_periods(summary: dict[str, Any], t: np.ndarray, thrust: np.ndarray, period: float | None,
+                        trusted: bool) -> None:
+    """A real-time run's preconditions once featherstar.cosim.swimmer.validity has judged its
+    periods: enough valid periods (and a valid tare), finite thrust over the valid periods only
+    (an excluded period may hold a gap), finite TR and mean thrust over them."""
+    checks = summary.setdefault("preconditions", {})
+    validity = summary.get("validity") or {}
+    checks["valid_periods"] = "holds" if trusted else validity.get("reason", "the periods were not judged")
+    if not period or "window_s" not in summary:
+        return
+    a = float(summary["window_s"][0])
+    excluded = {int(p["period"]) for p in validity.get("invalid_periods", [])}
+    valid = [k for k in range(int(summary.get("periods_used", 0) or 0)) if k + 1 not in excluded]
+    bad = [finite_precondition("thrust", t, thrust, a + k * period, a + (k + 1) * period) for k in valid]
+    bad = [c for c in bad if not c.holds]
+    checks["finite_thrust"] = bad[0].reason if bad else "holds"
+    final = finite_thrust_metrics(summary)   # TR and mean thrust over the valid periods
+    checks[final.name] = final.reason or "holds"

@@ -16,14 +16,14 @@ import numpy as np
 
 from ..coupling.context import Context
 from ..coupling.simulator import Simulator
-from ..errors import RunInterrupted, StepError
+from ..errors import RunInterrupted, SceneError, StepError
 from ..framework.units import Unit
 from ..scene.data import Scene
 from ..scene.graph import plan as make_plan
 from ..scene.plan import Plan
 from ..scene.preflight import check_metric_window, check_run_size
-from ..scenes import load_scene
-from .metrics import scene_metrics
+from ..scenes import load_scene, name_file
+from .metrics import failed_preconditions, judge_valid_periods, scene_metrics
 from .validity import apply_validity
 
 
@@ -77,16 +77,14 @@ def run_scene(
     RunInterrupted from a signal handler) and an unexpected exception inside the master become a
     StepError of block 'master' too, after every started block was closed (a hardware servo
     commands its safe position on close): no path leaves the bench running or loses the data.
-    A real-time run whose metric window has too few valid periods (featherstar.cosim.swimmer.validity) returns
-    with `complete = False`.
+    A run whose metrics' preconditions do not all hold (featherstar.cosim.swimmer.metrics: whole
+    periods, enough samples per period, finite values; for a real-time run also enough valid
+    periods, featherstar.cosim.swimmer.validity) returns with `complete = False`, the failed ones
+    named in `summary["incomplete_reason"]`.
     """
     wall0 = time.perf_counter()
-    base = load_scene(scene)
-    sc = base.with_overrides(overrides)
-    plan = make_plan(sc, outputs)
-    check_run_size(plan)
-    if strict_window or sc.master.realtime:
-        check_metric_window(plan)
+    plan = prepare(scene, overrides, outputs=outputs, strict_window=strict_window)
+    sc = plan.scene
     bar = _Progress(plan.t_end_s, sc.name) if progress else None
     sim = Simulator(plan, progress=bar)
     error: StepError | None = None
@@ -112,6 +110,23 @@ def run_scene(
         error.partial = result
         raise error
     return result
+
+
+def prepare(scene: str | Path | Scene, overrides: Mapping[str, str | float] | None = None, *,
+            outputs: Sequence[str] | None = None, strict_window: bool = False) -> Plan:
+    """Every check before work, in order: the scene (file, schema), the overrides, the plan
+    (wiring, ranges, step guards), the run's size and (strict_window or real time) its metric
+    window. A SceneError from any of them names the scene's file when it has one."""
+    base = load_scene(scene)
+    try:
+        sc = base.with_overrides(overrides)
+        plan = make_plan(sc, outputs)
+        check_run_size(plan)
+        if strict_window or sc.master.realtime:
+            check_metric_window(plan)
+    except SceneError as exc:
+        raise name_file(exc, base.source) from None
+    return plan
 
 
 def _loop_stats(context: Context) -> list[dict[str, Any]]:
@@ -180,6 +195,8 @@ def _result(plan: Plan, sim: Simulator, wall: float, overrides: Mapping[str, Any
         summary.update(step_s=sc.master.step_s, adaptive=sc.master.adaptive)
     if error is None and n > 1:
         summary.update(scene_metrics(sc.metrics, plan.period_s, t, signals))
+    elif error is None and sc.metrics.signals():
+        summary["preconditions"] = {"recorded_samples": f"the run recorded {n} sample(s)"}
     if error is not None:
         summary.update(error=str(error), failed_block=error.block, failed_at_s=error.t_s)
     if sim.ended is not None:   # a model that said it is done (FMI terminateSimulation): not an error
@@ -192,13 +209,15 @@ def _result(plan: Plan, sim: Simulator, wall: float, overrides: Mapping[str, Any
             summary["terminated_note"] = "; ".join(
                 f"{n} stopped at t={t_s!r} s inside the last macro step" for n, t_s in inside.items()
             ) + f": the run ended at the communication point t={t_stop!r} s (a master.step_s that lands on it ends there)"
-    complete = error is None
     if sc.master.realtime:
-        trusted = _realtime_summary(plan, context, units, t, signals, summary,
-                                    finished=error is None and n > 1)
-        if error is None and not trusted:
-            complete = False
-            summary["incomplete_reason"] = summary["validity"]["reason"]
+        finished = error is None and n > 1
+        trusted = _realtime_summary(plan, context, units, t, signals, summary, finished=finished)
+        if finished and sc.metrics.thrust:
+            judge_valid_periods(summary, t, signals[sc.metrics.thrust], plan.period_s, trusted)
+    failed = failed_preconditions(summary)
+    complete = error is None and not failed
+    if error is None and failed:
+        summary["incomplete_reason"] = "; ".join(f"{name}: {why}" for name, why in failed.items())
     info = {
         "instantiated": list(plan.instantiate),
         "aliases": {k: v for k, v in plan.alias_of.items() if k != v},

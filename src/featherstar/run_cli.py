@@ -68,11 +68,12 @@ def _run_and_report(args: argparse.Namespace, scene, overrides, outputs, stop) -
     from .cosim.errors import StepError
     from .cosim.swimmer.report import summary_table, write_outputs
     from .cosim.swimmer.run import run_scene
+    from .hil.timed_run import run_bench_scene
 
-    if args.hardware:   # streamed, or device-timed when the URLs say clock=device
-        from .hil.timed_run import run_bench_scene as run_scene
+    # with hardware: streamed, or device-timed when the URLs say clock=device
+    runner = run_bench_scene if args.hardware else run_scene
     try:
-        result = run_scene(scene, overrides, outputs=outputs, progress=not args.quiet,
+        result = runner(scene, overrides, outputs=outputs, progress=not args.quiet,
                            strict_window=True)
     except StepError as exc:
         where = ""
@@ -117,12 +118,12 @@ def _cmd_scenes(args: argparse.Namespace) -> int:
 
 def _print_settings(scene_ref: str, items: list[str]) -> int:
     from .cosim.scene.graph import plan
-    from .cosim.scene.settings import format_settings, scene_settings
+    from .cosim.scene.listing import format_keys, scene_keys
     from .cosim.scenes import load_scene
 
     scene = load_scene(scene_ref).with_overrides(_parse_set(items))
     print(f"{scene.name}: every key --set takes (KEY  value unit  range  meaning)")
-    print(format_settings(scene_settings(plan(scene))))
+    print(format_keys(scene_keys(plan(scene))))
     return 0
 
 

@@ -146,8 +146,8 @@ def test_energy_guard_waits_for_the_judging_time():
 
 
 @pytest.mark.parametrize("override,message", [
-    ({"master.passive_energy_factor": -1}, "must be >= 0"),
-    ({"master.passive_energy_factor": "nan"}, "must be >= 0"),
+    ({"master.passive_energy_factor": -1}, "must be a finite number >= 0"),
+    ({"master.passive_energy_factor": "nan"}, "must be a finite number >= 0"),
     ({"master.passive_energy_factor": "lots"}, "is not a valid float"),
     ({"master.check_steps": "maybe"}, "is not a valid bool"),
     ({"master.check_steps": 3}, "is not a valid bool"),

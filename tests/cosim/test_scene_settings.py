@@ -9,14 +9,14 @@ import pytest
 from featherstar.app import main
 from featherstar.cosim.errors import SceneError
 from featherstar.cosim.scene.graph import plan
-from featherstar.cosim.scene.settings import scene_settings
+from featherstar.cosim.scene.listing import scene_keys
 from featherstar.cosim.scenes import list_scenes, load_scene
 
 SCENES = [name for name, _ in list_scenes()]
 
 
 def _settings(name: str, overrides=None):
-    return scene_settings(plan(load_scene(name).with_overrides(overrides or {})))
+    return scene_keys(plan(load_scene(name).with_overrides(overrides or {})))
 
 
 @pytest.mark.parametrize("name", SCENES)
@@ -34,7 +34,7 @@ def test_every_listed_key_is_taken_by_set_at_its_listed_value(name):
 @pytest.mark.parametrize("name", SCENES)
 def test_every_model_parameter_and_option_is_listed(name):
     p = plan(load_scene(name))
-    listed = {s.key for s in scene_settings(p)}
+    listed = {s.key for s in scene_keys(p)}
     for block, rb in p.blocks.items():
         if rb.model is not None:
             expected = {f"{block}.{q.name}" for q in rb.model.parameters} | {f"{block}.{o}" for o in rb.model.options}
