@@ -24,35 +24,49 @@ this replaces grew as N³).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Sequence
+from typing import Callable, Sequence
 
 import casadi as ca
 
-from .fluid import fluid_loads
+from .drag_quadrature import DragRule
+from .fluid import fluid_loads, quadratic_drag_N
 
 
 @dataclass(frozen=True)
 class PlatePoint:
-    """A quadrature point of a plate, in the plate's frame. `along_m` is measured from the link's
-    start along the link; `across_m` from the flap's hinge along the flap (0 for spine points).
-    `drag_factor_kg_m` is ½ ρ C_d A: the normal drag is −drag_factor |v_n| v_n n."""
+    """A mass quadrature point of a plate, in the plate's frame. `along_m` is measured from the
+    link's start along the link; `across_m` from the flap's hinge along the flap (0 for spine
+    points). Drag is carried by `DragStrip`s, which have their own quadrature."""
 
     along_m: ca.SX
     across_m: ca.SX
     mass_kg: ca.SX
     added_mass_kg: ca.SX
-    drag_factor_kg_m: ca.SX
     volume_m3: ca.SX
+
+
+@dataclass(frozen=True)
+class DragStrip:
+    """A straight line of a plate from `start` to `end` (each (along_m, across_m), as a
+    PlatePoint's) that carries the drag of the strip of plate around it: −∫₀¹ f(along(t)) |s| s dt n,
+    s the normal speed relative to the water, f = `drag_factor_kg_m(along_m)` = ½ ρ C_d × the
+    strip's area. On a rigid plate s is affine along the line (`featherstar.fmu_src.drag_quadrature`)."""
+
+    start: tuple[ca.SX, ca.SX]
+    end: tuple[ca.SX, ca.SX]
+    drag_factor_kg_m: Callable[[ca.SX], ca.SX]
 
 
 @dataclass(frozen=True)
 class Link:
     """One rigid link of the chain and, if `flap` is not empty, the flap hinged along it at
-    `hinge_offset_m` from the link's axis (out of the plane, +z)."""
+    `hinge_offset_m` from the link's axis (out of the plane, +z); each plate's drag strips."""
 
     length_m: ca.SX
     spine: tuple[PlatePoint, ...]
+    spine_drag: tuple[DragStrip, ...]
     flap: tuple[PlatePoint, ...] = ()
+    flap_drag: tuple[DragStrip, ...] = ()
     hinge_offset_m: ca.SX = 0.0
 
 
@@ -104,11 +118,12 @@ class _Sums:
 
 
 def solve_chain(
-    links: Sequence[Link], motion: ChainMotion, net_buoyancy_N_m3: ca.SX
+    links: Sequence[Link], motion: ChainMotion, net_buoyancy_N_m3: ca.SX, drag_rule: DragRule
 ) -> ChainSolution:
     """Accelerations of every joint and fold and the load-cell outputs, in O(len(links)).
 
-    `net_buoyancy_N_m3` is (ρ − ρ_s) g: the net upward (+y) force per unit volume."""
+    `net_buoyancy_N_m3` is (ρ − ρ_s) g: the net upward (+y) force per unit volume; `drag_rule`
+    integrates the drag along each strip."""
     n_links = len(links)
     flapped = [j for j, link in enumerate(links) if link.flap]
     if motion.joint_angles.numel() != n_links - 1 or motion.fold_angles.numel() != len(flapped):
@@ -144,6 +159,13 @@ def solve_chain(
             bias_accel = ca.cross(spin, ca.cross(spin, offset))
             wrench, _ = _point_wrench(pt, offset, _vec(0, 1, 0), spin, velocity, bias_accel, frame, sums)
             bias = bias + wrench
+
+        def spine_kinematics(along, across):
+            return _vec(along, 0, 0), _vec(vel_along, vel_normal + rate * along, 0)
+
+        for strip in link.spine_drag:
+            wrench, _ = _strip_drag(strip, drag_rule, _vec(0, 1, 0), spine_kinematics, frame, sums)
+            bias = bias + wrench
         inertia = _spine_inertia(link.spine)
         if link.flap:
             k = fold_index[j]
@@ -160,6 +182,16 @@ def solve_chain(
                 bias_accel = (ca.cross(_vec(0, fold_rate * rate, 0), from_hinge)
                               + ca.cross(flap_spin, ca.cross(flap_spin, from_hinge)))
                 wrench, fold_moment = _point_wrench(pt, offset, normal, flap_spin, velocity, bias_accel, frame, sums)
+                bias = bias + wrench
+                fold_free = fold_free + fold_moment
+
+            def flap_kinematics(along, across, cf=cf, sf=sf, flap_spin=flap_spin, h=link.hinge_offset_m):
+                from_hinge = _vec(along, -across * sf, across * cf)
+                return (from_hinge + _vec(0, 0, h),
+                        _vec(vel_along, vel_normal, 0) + ca.cross(flap_spin, from_hinge))
+
+            for strip in link.flap_drag:
+                wrench, fold_moment = _strip_drag(strip, drag_rule, normal, flap_kinematics, frame, sums)
                 bias = bias + wrench
                 fold_free = fold_free + fold_moment
             flap_inertia, fold_inertia, coupling = _flap_inertia(link.flap, cf, sf)
@@ -244,20 +276,45 @@ def _point_wrench(pt: PlatePoint, offset: ca.SX, normal: ca.SX, spin: ca.SX, vel
     accelerations of the tree zero, and its moment about a flap hinge (∂r/∂ψ = −across·n,
     ∂Ω/∂ψ̇ = the link axis). Adds the point's outputs to `sums`."""
     relative = velocity + frame.flow_speed_m_s * frame.up
-    loads = fluid_loads(pt.added_mass_kg, pt.drag_factor_kg_m, normal, ca.cross(spin, normal), relative)
+    loads = fluid_loads(pt.added_mass_kg, normal, ca.cross(spin, normal), relative)
     m, m_a = pt.mass_kg, pt.added_mass_kg
     force = (m * bias_accel + m_a * ca.dot(normal, bias_accel) * normal + loads.impulse_rate_N
-             - loads.drag_N - pt.volume_m3 * frame.net_buoyancy_N_m3 * frame.up)
+             - pt.volume_m3 * frame.net_buoyancy_N_m3 * frame.up)
     couple = -loads.munk_couple_Nm
     wrench = _vec(offset[0] * force[1] - offset[1] * force[0] + couple[2], force[0], force[1])
     fold_moment = -pt.across_m * ca.dot(normal, force) + couple[0]
     normal_up = ca.dot(normal, frame.up)
-    sums.drag_y += ca.dot(loads.drag_N, frame.up)
     sums.momentum_y += m * ca.dot(velocity, frame.up) + m_a * loads.normal_speed_m_s * normal_up
     sums.surge_mass += m + m_a * normal_up**2
     sums.kinetic += 0.5 * m * ca.dot(velocity, velocity) + 0.5 * m_a * ca.dot(normal, velocity) ** 2
     sums.volume += pt.volume_m3
     sums.volume_height += pt.volume_m3 * (frame.origin_y + frame.sin_abs * offset[0] + frame.cos_abs * offset[1])
+    return wrench, fold_moment
+
+
+def _strip_drag(strip: DragStrip, rule: DragRule, normal: ca.SX,
+                kinematics: Callable[[ca.SX, ca.SX], tuple[ca.SX, ca.SX]], frame: _Frame,
+                sums: _Sums) -> tuple[ca.SX, ca.SX]:
+    """The planar wrench about the link origin that the strip's drag asks of the link (as
+    `_point_wrench`'s, the negative of the drag's) and its moment about a flap hinge.
+    `kinematics(along, across)` gives a point's offset and velocity in the link frame."""
+
+    def normal_speed(along, across):
+        offset, velocity = kinematics(along, across)
+        return offset, ca.dot(normal, velocity + frame.flow_speed_m_s * frame.up)
+
+    (a0, c0), (a1, c1) = strip.start, strip.end
+    _, speed_start = normal_speed(a0, c0)
+    _, speed_end = normal_speed(a1, c1)
+    wrench, fold_moment, drag_y = ca.SX.zeros(3), ca.SX(0), ca.SX(0)
+    for t, weight in rule.nodes(speed_start, speed_end):
+        along, across = a0 + t * (a1 - a0), c0 + t * (c1 - c0)
+        offset, speed = normal_speed(along, across)
+        drag = quadratic_drag_N(weight * strip.drag_factor_kg_m(along), speed, normal)
+        wrench = wrench - _vec(offset[0] * drag[1] - offset[1] * drag[0], drag[0], drag[1])
+        fold_moment = fold_moment + across * ca.dot(normal, drag)
+        drag_y = drag_y + ca.dot(drag, frame.up)
+    sums.drag_y += drag_y
     return wrench, fold_moment
 
 

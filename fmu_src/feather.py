@@ -28,7 +28,8 @@ import casadi as ca
 from .errors import ModelError
 from .model import Model, Parameter, Variable
 from .contact import one_way_stop
-from .chain import ChainMotion, Link, PlatePoint, solve_chain
+from .chain import ChainMotion, DragStrip, Link, PlatePoint, solve_chain
+from .drag_quadrature import DragRule
 from .fluid import dnv_added_mass_coeff, oscillatory_drag_coeff, stroke_keulegan_carpenter
 
 MORPHOLOGIES = ("plain", "chordwise", "spanwise")
@@ -36,6 +37,12 @@ GAUSS = (0.5 - 0.5 / math.sqrt(3.0), 0.5 + 0.5 / math.sqrt(3.0))
 # Two points at these chord fractions reproduce a strip's added mass and its first and second
 # moments about the hinge (m' = ρπb²/4, S' = m'b/2, J' = 9ρπb⁴/128).
 ADDED_MASS_CHORD = (0.5 - 1.0 / math.sqrt(32.0), 0.5 + 1.0 / math.sqrt(32.0))
+#: The drag quadrature by default: 4 Gauss points on each strip, the rule with the fewest points
+#: whose test-bed TR and mean thrust are within 0.1 % of the finest rule's for every morphology
+#: (bench/drag_convergence.py, docs/results/drag_convergence.json; the spanwise feather's long
+#: supported root link, over which C_d(KC) has its kink, is what needs the 4: the split rule, exact
+#: for |s| s, needs as many there).
+DEFAULT_DRAG_POINTS, DEFAULT_DRAG_SPLIT = 4, False
 
 
 #: The sheet's material damping as a Kelvin-Voigt solid, sigma = E (eps + tau d(eps)/dt): a mode at
@@ -100,9 +107,15 @@ def _morphology_parameters(morphology: str) -> list[Parameter]:
     ]
 
 
-def feather_model(morphology: str = "plain", n_units: int = 10, root_support: bool | None = None) -> Model:
-    """Build the feather model. `morphology`, `n_units` and `root_support` change the number of
-    states and are therefore build options; every physical constant is a parameter.
+def feather_model(morphology: str = "plain", n_units: int = 10, root_support: bool | None = None,
+                  drag_points: int = DEFAULT_DRAG_POINTS, drag_split: bool = DEFAULT_DRAG_SPLIT) -> Model:
+    """Build the feather model. `morphology`, `n_units`, `root_support` and the drag quadrature
+    change the equations' structure and are therefore build options; every physical constant is a
+    parameter.
+
+    `drag_points`, `drag_split`: the quadrature of the quadratic drag along each link's span and
+    across each flap's chord (`featherstar.fmu_src.drag_quadrature`): that many Gauss points, on
+    each side of the zero of the normal speed with `drag_split`.
 
     `root_support` (spanwise only, default True): the part between the root and the hinge at
     l_root is held by the support (the paper, Sec. II-A: the spanwise feathers "have a joint at a
@@ -116,6 +129,10 @@ def feather_model(morphology: str = "plain", n_units: int = 10, root_support: bo
         raise ModelError(f"feather root_support applies to the spanwise morphology only, not '{morphology}'")
     if root_support is not None and not isinstance(root_support, bool):
         raise ModelError(f"feather root_support = {root_support!r} must be true or false")
+    if not isinstance(drag_points, int) or isinstance(drag_points, bool) or not 1 <= drag_points <= 64:
+        raise ModelError(f"feather drag_points = {drag_points!r} must be an integer in [1, 64]")
+    if not isinstance(drag_split, bool):
+        raise ModelError(f"feather drag_split = {drag_split!r} must be true or false")
     supported = morphology == "spanwise" and root_support is not False
 
     parameters = _common_parameters() + _morphology_parameters(morphology)
@@ -175,29 +192,36 @@ def feather_model(morphology: str = "plain", n_units: int = 10, root_support: bo
     for link_length in link_lengths:
         spine_points = tuple(PlatePoint(
             c * link_length, 0, rho_s * spine * thick * link_length / 2,
-            added_mass_coeff * kappa * rho * math.pi * spine**2 / 4 * link_length / 2,
-            0.5 * rho * drag_coeff(arc + c * link_length) * spine * link_length / 2, spine * thick * link_length / 2,
+            added_mass_coeff * kappa * rho * math.pi * spine**2 / 4 * link_length / 2, spine * thick * link_length / 2,
         ) for c in GAUSS)
+        # The spine's drag along the whole link: the normal speed is affine along it.
+        spine_drag = (DragStrip((0, 0), (link_length, 0),
+                                lambda along, arc=arc, a=spine * link_length: 0.5 * rho * drag_coeff(arc + along) * a),)
         flap_points: tuple[PlatePoint, ...] = ()
+        flap_drag: tuple[DragStrip, ...] = ()
         if morphology == "chordwise":
             # Both flaps mirror each other in z: model one with doubled mass, area and added mass;
             # their z-forces cancel and their in-plane forces add. The chord points sit where two
             # points reproduce the strip's added mass and its first and second moments about the
-            # hinge; they also carry the drag and structural mass.
+            # hinge; they also carry the structural mass. The drag is a line across the chord at
+            # each of the link's Gauss points (the normal speed is affine across it).
             quarter = link_length * chord / 4
             flap_points = tuple(PlatePoint(
                 c * link_length, s * chord, 2 * rho_s * thick * quarter,
-                2 * added_mass_coeff * kappa * rho * math.pi * chord**2 / 4 * link_length / 4,
-                0.5 * rho * drag_coeff(arc + c * link_length) * 2 * quarter, 2 * thick * quarter,
+                2 * added_mass_coeff * kappa * rho * math.pi * chord**2 / 4 * link_length / 4, 2 * thick * quarter,
             ) for c in GAUSS for s in ADDED_MASS_CHORD)
-        links.append(Link(link_length, spine_points, flap_points, spine / 2))
+            flap_drag = tuple(DragStrip(
+                (c * link_length, 0), (c * link_length, chord),
+                lambda along, arc=arc, a=2 * quarter * 2: 0.5 * rho * drag_coeff(arc + along) * a,
+            ) for c in GAUSS)
+        links.append(Link(link_length, spine_points, spine_drag, flap_points, flap_drag, spine / 2))
         arc = arc + link_length
 
     internal, elastic_energy, fold_angle = _internal_torques(morphology, joints, q, psi, Q_rate, P, width, link_lengths)
     net_buoyancy = (rho - rho_s) * grav  # per unit volume, along +y
     solution = solve_chain(links, ChainMotion(
         theta0, theta0_rate, theta0_accel, flow_speed, q, Q_rate[:n_joints], internal[:n_joints],
-        psi, Q_rate[n_joints:], internal[n_joints:]), net_buoyancy)
+        psi, Q_rate[n_joints:], internal[n_joints:]), net_buoyancy, DragRule(drag_points, drag_split))
     Q_accel = ca.vertcat(solution.joint_accels, solution.fold_accels)
     # Buoyancy energy counted from the position of least potential a point can reach (no point is
     # farther than l + w from the root), so that the energy is never negative.
@@ -249,7 +273,7 @@ def feather_model(morphology: str = "plain", n_units: int = 10, root_support: bo
         p=p,
         xdot=xdot,
         y=outputs_expr,
-        options={"morphology": morphology, "n_units": n_units,
+        options={"morphology": morphology, "n_units": n_units, "drag_points": drag_points, "drag_split": drag_split,
                  **({"root_support": supported} if morphology == "spanwise" else {})},
     )
 

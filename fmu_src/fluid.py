@@ -61,19 +61,20 @@ class FluidLoads:
     normal_speed_m_s: ca.SX  # v_n = n·w
     impulse_rate_N: ca.SX  # m_a [(ṅ·w) n + v_n ṅ]: the rest of d/dt(m_a v_n n)
     munk_couple_Nm: ca.SX  # m_a v_n (n × w), the couple the fluid applies (turns a plate broadside)
-    drag_N: ca.SX  # −drag_factor |v_n| v_n n
 
 
-def fluid_loads(
-    added_mass_kg: ca.SX, drag_factor_kg_m: ca.SX, normal: ca.SX, normal_rate: ca.SX, relative_velocity: ca.SX
-) -> FluidLoads:
-    """Velocity-product fluid force, Munk couple and drag of a point whose normal n turns at
-    `normal_rate` (ṅ = Ω × n) and moves at w = `relative_velocity` through still water.
-    `drag_factor_kg_m` is ½ ρ C_d A."""
+def fluid_loads(added_mass_kg: ca.SX, normal: ca.SX, normal_rate: ca.SX, relative_velocity: ca.SX) -> FluidLoads:
+    """Velocity-product fluid force and Munk couple of a point whose normal n turns at
+    `normal_rate` (ṅ = Ω × n) and moves at w = `relative_velocity` through still water."""
     normal_speed = ca.dot(normal, relative_velocity)
     return FluidLoads(
         normal_speed_m_s=normal_speed,
         impulse_rate_N=added_mass_kg * (ca.dot(normal_rate, relative_velocity) * normal + normal_speed * normal_rate),
         munk_couple_Nm=added_mass_kg * normal_speed * ca.cross(normal, relative_velocity),
-        drag_N=-drag_factor_kg_m * ca.fabs(normal_speed) * normal_speed * normal,
     )
+
+
+def quadratic_drag_N(drag_factor_kg_m: ca.SX, normal_speed_m_s: ca.SX, normal: ca.SX) -> ca.SX:
+    """Normal drag −f |s| s n of a piece of plate with drag factor f = ½ ρ C_d A moving at normal
+    speed s relative to the water."""
+    return -drag_factor_kg_m * ca.fabs(normal_speed_m_s) * normal_speed_m_s * normal

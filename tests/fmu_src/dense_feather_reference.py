@@ -2,13 +2,20 @@
 every point's position an expression of (Q, θ0), the dense mass matrix from exact Jacobians and a
 symbolic LDLᵀ solve. A test reference only: `test_chain_dynamics.py` checks the recursive solve
 of `featherstar.fmu_src.chain` against it. The geometry, fluid terms and internal torques below are copied
-from that commit, not imported, so that the reference does not move with the code it checks."""
+from that commit, not imported, so that the reference does not move with the code it checks.
+
+The drag follows the quadrature the model adopted in issue 26 (item 0), written here afresh: each
+link's span and, at each of its two Gauss stations, each flap's chord is a line whose points move
+with the plate; the normal speed at its ends comes from this file's own Jacobians, the line is cut
+at its zero if the model splits, and numpy's Gauss–Legendre nodes are placed on each piece. The
+model's own rule (`featherstar.fmu_src.drag_quadrature`) is not imported."""
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
 
 import casadi as ca
+import numpy as np
 
 from featherstar.fmu_src.contact import one_way_stop
 from featherstar.fmu_src.feather import ADDED_MASS_CHORD, GAUSS
@@ -76,6 +83,7 @@ def dense_feather_function(model: Model) -> ca.Function:
 
     z_axis = ca.DM([0.0, 0.0, 1.0])
     points: list[Point] = []
+    lines: list[tuple] = []  # (start, end, normal, area, C_d of the fraction t along the line)
     origin = ca.SX.zeros(3)
     arc = 0  # span coordinate of the link's start, from the root
     angle = theta0
@@ -88,15 +96,19 @@ def dense_feather_function(model: Model) -> ca.Function:
             points.append(Point(
                 origin + c * link_length * along, normal,
                 rho_s * spine * thick * link_length / 2, added_mass_coeff * kappa * rho * math.pi * spine**2 / 4 * link_length / 2,
-                spine * link_length / 2, spine * thick * link_length / 2, drag_coeff(arc + c * link_length),
+                0, spine * thick * link_length / 2, 0,
             ))
+        spine_end = origin + link_length * along
+        lines.append((origin, spine_end, normal, spine * link_length,
+                      lambda t, arc=arc, dl=link_length: drag_coeff(arc + t * dl)))
         if morphology == "chordwise":
             fold = psi[j]
             flap_normal = ca.cos(fold) * normal + ca.sin(fold) * z_axis
             # Both flaps mirror each other in z: model one with doubled mass, area and added mass;
             # their z-forces cancel and their in-plane forces add.
             # The chord points sit where two points reproduce the strip's added mass and its first
-            # and second moments about the hinge; they also carry the drag and structural mass.
+            # and second moments about the hinge and carry the structural mass; the drag is on a
+            # line across the chord at each Gauss station.
             for c in GAUSS:
                 hinge_point = origin + c * link_length * along
                 for s in ADDED_MASS_CHORD:
@@ -105,8 +117,12 @@ def dense_feather_function(model: Model) -> ca.Function:
                     points.append(Point(
                         hinge_point + offset, flap_normal, 2 * rho_s * thick * quarter,
                         2 * added_mass_coeff * kappa * rho * math.pi * chord**2 / 4 * link_length / 4,
-                        2 * quarter, 2 * thick * quarter, drag_coeff(arc + c * link_length),
+                        0, 2 * thick * quarter, 0,
                     ))
+                hinge = hinge_point + spine / 2 * z_axis
+                tip = hinge + chord * (ca.cos(fold) * z_axis - ca.sin(fold) * normal)
+                lines.append((hinge, tip, flap_normal, link_length * chord,
+                              lambda t, cd=drag_coeff(arc + c * link_length): cd))
         origin = origin + link_length * along
         arc = arc + link_length
 
@@ -120,7 +136,9 @@ def dense_feather_function(model: Model) -> ca.Function:
     dynamics = [point_dynamics(pt, coords, coord_rates, n_free, theta0_accel, flow_speed, rho, gravity_force)
                 for pt in points]
     mass_matrix = sum(d.mass_matrix for d in dynamics)
-    generalized_force = sum(d.applied - d.bias for d in dynamics)
+    line_drag = [line_drag_force(*line, coords, coord_rates, flow_speed, rho, model.options["drag_points"],
+                                 model.options["drag_split"]) for line in lines]
+    generalized_force = sum(d.applied - d.bias for d in dynamics) + sum(g for g, _ in line_drag)
 
     internal, elastic_energy, fold_angle = _internal_torques(morphology, joints, q, psi, Q_rate, P, width, link_lengths)
     # Flaps first: their block of M is diagonal, so eliminating them first causes no fill-in.
@@ -130,7 +148,7 @@ def dense_feather_function(model: Model) -> ca.Function:
     Q_accel = ca.SX.sym("qdd", n_free)
 
     root_torque = ca.dot(mass_matrix[n_free, :n_free].T, Q_accel) - generalized_force[n_free]
-    drag_thrust = sum(d.drag[1] for d in dynamics)
+    drag_thrust = sum(force[1] for _, force in line_drag)
     thrust = drag_thrust - sum(d.momentum_rate(Q_accel)[1] for d in dynamics)
     momentum_y = sum(d.momentum()[1] for d in dynamics)
     # ∂(momentum_y)/∂U: what the body's acceleration U̇ would add to the root force, −surge_mass·U̇.
@@ -274,6 +292,37 @@ def point_dynamics(
         jacobian_q=jac[:, :n_free], known_accel=known_accel, velocity=velocity, relative_velocity=relative,
         normal_rate=normal_rate, drag=drag, point=point,
     )
+
+
+def line_drag_force(start, end, normal, area, drag_coeff_at, coords, coord_rates, flow_speed, water_density,
+                    points: int, split: bool) -> tuple[ca.SX, ca.SX]:
+    """(generalized force, force vector) of the quadratic drag on a straight line of a rigid plate
+    from `start` to `end` (root-frame expressions): −½ρ C_d area ∫₀¹ |v_n| v_n dt n. A point at
+    the fraction t has Jacobian (1 − t) J_start + t J_end, t held fixed."""
+    jac_start, jac_end = ca.jacobian(start, coords), ca.jacobian(end, coords)
+    flow = flow_speed * ca.DM([0.0, 1.0, 0.0])
+
+    def jacobian_at(t):
+        return (1 - t) * jac_start + t * jac_end
+
+    def speed_at(t):
+        return ca.dot(normal, jacobian_at(t) @ coord_rates + flow)
+
+    nodes, weights = np.polynomial.legendre.leggauss(points)
+    unit = [((1 + x) / 2, w / 2) for x, w in zip(nodes, weights)]
+    if split:
+        s0, s1 = speed_at(0), speed_at(1)
+        zero = ca.if_else(s0 * s1 < 0, s0 / ca.if_else(s0 * s1 < 0, s0 - s1, 1), 1)
+        pieces = [(zero * t, zero * w) for t, w in unit] + [(zero + (1 - zero) * t, (1 - zero) * w) for t, w in unit]
+    else:
+        pieces = unit
+    generalized, force = 0, 0
+    for t, w in pieces:
+        speed = speed_at(t)
+        drag = -0.5 * water_density * drag_coeff_at(t) * area * w * ca.fabs(speed) * speed * normal
+        generalized = generalized + jacobian_at(t).T @ drag
+        force = force + drag
+    return generalized, force
 
 
 def _is_zero(expr: ca.SX) -> bool:

@@ -56,11 +56,17 @@ def random_states(model, rng: np.random.Generator) -> np.ndarray:
     return states
 
 
-@pytest.mark.parametrize("n_units", [5, 10, 20, 40])
-@pytest.mark.parametrize("morphology,root_support", [("plain", None), ("chordwise", None), ("spanwise", None),
-                                                      ("spanwise", False)])
-def test_recursive_solve_equals_the_dense_mass_matrix_solve(morphology, root_support, n_units):
+CASES = [(morphology, root_support, n_units, None) for n_units in (5, 10, 20, 40)
+         for morphology, root_support in (("plain", None), ("chordwise", None), ("spanwise", None), ("spanwise", False))]
+# The drag quadrature without the split (Gauss points over each whole strip).
+CASES += [("chordwise", None, 5, (3, False)), ("spanwise", False, 6, (4, False))]
+
+
+@pytest.mark.parametrize("morphology,root_support,n_units,drag_rule", CASES)
+def test_recursive_solve_equals_the_dense_mass_matrix_solve(morphology, root_support, n_units, drag_rule):
     options = {} if root_support is None else {"root_support": root_support}
+    if drag_rule is not None:
+        options["drag_points"], options["drag_split"] = drag_rule
     model = feather_model(morphology, n_units, **options)
     rng = np.random.default_rng(n_units)
     states = random_states(model, rng)

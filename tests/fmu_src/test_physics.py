@@ -124,6 +124,9 @@ def test_non_physical_parameters_are_refused(kind, options, parameter, value, pa
     ({"colour": "red"}, "build option"),
     ({"morphology": "plain", "root_support": True}, "root_support applies to the spanwise"),
     ({"morphology": "spanwise", "root_support": "yes"}, "root_support = 'yes' must be true or false"),
+    ({"drag_points": 0}, "drag_points = 0 must be an integer in \\[1, 64\\]"),
+    ({"drag_points": 2.5}, "drag_points = 2.5"),
+    ({"drag_split": 1}, "drag_split = 1 must be true or false"),
 ])
 def test_bad_build_options_are_refused(options, pattern):
     with pytest.raises(ModelError, match=pattern):
