@@ -68,10 +68,10 @@ def _run_and_report(args: argparse.Namespace, scene, overrides, outputs, stop) -
     from .cosim.errors import StepError
     from .cosim.swimmer.report import summary_table, write_outputs
     from .cosim.swimmer.run import run_scene
-    from .hil.timed_run import run_bench_scene
 
-    # with hardware: streamed, or device-timed when the URLs say clock=device
-    runner = run_bench_scene if args.hardware else run_scene
+    runner = run_scene
+    if args.hardware:   # streamed, or device-timed when the URLs say clock=device
+        from .hil.timed_run import run_bench_scene as runner
     try:
         result = runner(scene, overrides, outputs=outputs, progress=not args.quiet,
                            strict_window=True)
