@@ -44,6 +44,8 @@ class MixedCoupling:
         self.group: OdeGroup | None = None
         self.t = 0.0
         self.n_steps = 0
+        # (the units that asked to terminate, the time the run ended there): a normal end
+        self.ended: tuple[str, float] | None = None
 
     def initialize(self, t0: float, t_end: float) -> None:
         system, context, m = self.system, self.context, self.m
@@ -81,7 +83,7 @@ class MixedCoupling:
         group.ops = self.rhs_ops
         if group.discrete_units and group.discrete_inputs_pending(t):
             if group.handle_event(t):
-                group.check_not_terminated(t, self.t_end)
+                self.ended = (group.terminated_by, t)
             group.ops = self.all_ops
             group.set_point(t, group.cv.y_address)
             group.ops = self.rhs_ops
@@ -103,7 +105,7 @@ class MixedCoupling:
         group, m, t_end = self.group, self.m, self.t_end
         eps = 1e-12 * max(1.0, abs(t_end))
         t = self.t
-        while t < t_target - eps:
+        while t < t_target - eps and self.ended is None:
             h = min(m.step_s, t_end - t, t_target - t)
             if t + h > t_end - 1e-9 * h:
                 h = t_end - t
@@ -117,11 +119,16 @@ class MixedCoupling:
             if values != self._held_values or abs(group.cv.t - t) > eps:
                 group.cv.reinit(t)
             self._held_values = values
-            self._integrate(t, t_comm)
+            if self._integrate(t, t_comm):
+                t = self.t = group.cv.t
+                break
             self.context.t = t
             for u in self.stepped:
                 u.do_step(t, h)
             self.consistent(t_comm)
+            asked = [u.name for u in self.stepped if u.terminated_at_s is not None]
+            if asked and self.ended is None:
+                self.ended = (", ".join(asked), t_comm)
             t = self.t = t_comm
             self.n_steps += 1
             self._record_due(t)
@@ -131,9 +138,11 @@ class MixedCoupling:
         self.recording.check_rows()
         return t
 
-    def _integrate(self, t: float, t_comm: float) -> None:
+    def _integrate(self, t: float, t_comm: float) -> bool:
         """The ODE from t to t_comm with the stepped side's outputs held; output times inside the
-        step are recorded from CVODE's dense output, the one at t_comm after the communication."""
+        step are recorded from CVODE's dense output, the one at t_comm after the communication.
+        Returns whether a unit of the ODE asked to terminate (the run then ends there, its last
+        point recorded)."""
         group = self.group
         eps = 1e-12 * max(1.0, abs(self.t_end))
 
@@ -145,15 +154,26 @@ class MixedCoupling:
                 op()
             self.check(t_out)
             self.recording.record(t_out)
+            recorded.append(t_out)
 
+        recorded: list[float] = []
         inside = self.out_times[(self.out_times > t + eps) & (self.out_times < t_comm - eps)]
         try:
-            group.integrate(t_comm, t_comm, inside, 0, on_output)
-            group.check_not_terminated(group.cv.t, self.t_end)
+            k, terminated = group.integrate(t_comm, t_comm, inside, 0, on_output)
         except CVodeError as exc:
             raise group.diagnose(exc) from None
-        self.k += len(inside)
+        self.k += k
         self.context.stats.update(group.cv.stats())
+        if terminated:
+            t_stop = group.cv.t
+            self.ended = (group.terminated_by, t_stop)
+            group.ops = self.all_ops
+            group.set_point(t_stop, group.cv.y_address)
+            group.ops = self.rhs_ops
+            if not recorded or recorded[-1] < t_stop - eps:   # the run's last point is where it ended
+                self.check(t_stop)
+                self.recording.record(t_stop)
+        return terminated
 
     def get_state(self) -> Any:
         raise StepError("master", self.t, "the mixed coupling cannot save and restore its state",

@@ -39,7 +39,7 @@ def test_a_run_too_long_for_memory_is_refused_with_its_estimate(capsys):
 
 def test_optimize_refuses_a_run_length_override_it_would_ignore(capsys, tmp_path):
     line = _refused(capsys, ["optimize", "testbed", "--set", "master.periods=3",
-                             "--iterations", "1", "--out", str(tmp_path)])
+                             "--iterations", "4", "--out", str(tmp_path)])
     assert "--set master.periods: refused" in line
 
 

@@ -70,22 +70,26 @@ def test_sampled_command_holds_the_stroke_at_each_step_end_and_limits_its_rate()
 
 def test_strong_coupling_restarts_at_every_sample_and_converges_to_the_continuous_command():
     """A held command is a jump every sample: the solver stops there (one event per sample). The
-    held command converges to the continuous one as the sample period shrinks, and so does the
-    mean thrust it gives (the servo's position loop, a 30 ms lag, smooths the steps)."""
+    held command converges to the continuous one as the sample period shrinks, and so do the servo
+    angle and the thrust it gives, at first order (the servo's position loop, a 30 ms lag, smooths
+    the steps). The mean thrust is compared only to a bound: its difference is the mean of a
+    signed error that cancels over the period (measured 0.9-7.7 uN of 31 mN, not monotonic)."""
     from featherstar.cosim.swimmer.run import run_scene
 
     base = {"feather.morphology": "chordwise", "controller.period_s": 1.0, "controller.log10_up_down": 0.6,
             "master.periods": 2, "metrics.settle_periods": 1}
-    continuous = run_scene("testbed", base).summary["mean_thrust_N"]
-    errors = []
+    continuous = run_scene("testbed", base)
+    angle_rms, thrust_rms = [], []
     for period_s in (0.004, 0.002, 0.001, 0.0005):
         result = run_scene("testbed", {**base, "controller.sample_period_s": period_s})
         assert result.summary["stats"]["events"] == pytest.approx(2.0 / period_s, abs=1)
-        errors.append(abs(result.summary["mean_thrust_N"] - continuous))
-    # measured 5.1e-5, 3.2e-5, 1.9e-5, 0.8e-5 N (of 33 mN): towards first order as the period shrinks
-    assert errors == sorted(errors, reverse=True)
-    assert errors[-1] < errors[0] / 4
-    assert errors[0] < 0.01 * continuous
+        angle_rms.append(np.sqrt(np.mean((result["servo.angle_rad"] - continuous["servo.angle_rad"]) ** 2)))
+        thrust_rms.append(np.sqrt(np.mean((result["feather.thrust_N"] - continuous["feather.thrust_N"]) ** 2)))
+        assert result.summary["mean_thrust_N"] == pytest.approx(continuous.summary["mean_thrust_N"], rel=1e-3)
+    # measured: angle 6.5, 3.3, 1.6, 0.84 mrad; thrust 10.2, 5.3, 2.8, 1.4 mN: ratios 1.9-2.0
+    for errors in (angle_rms, thrust_rms):
+        ratios = np.array(errors[:-1]) / np.array(errors[1:])
+        assert np.all((ratios > 1.7) & (ratios < 2.3)), ratios
 
 
 def test_a_rate_limit_without_sampling_is_refused():
