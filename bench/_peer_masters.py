@@ -136,7 +136,8 @@ def run_fmpy(system: FmuSystem, signal: str, inputs: Callable[[np.ndarray], Mapp
     for column, values in signals.items():
         table[column] = values
     result = fmpy.simulate_fmu(str(path), fmi_type="CoSimulation", start_time=0.0, stop_time=float(grid[-1]),
-                               step_size=system.step_s, output_interval=system.step_s, input=table,
+                               step_size=system.step_s, output_interval=system.step_s,
+                               input=table if signals else None,
                                start_values={_split(k)[1]: v for k, v in system.start_values.items()},
                                output=[_split(signal)[1]], relative_tolerance=rtol)
     values = np.asarray(result[_split(signal)[1]], dtype=float)

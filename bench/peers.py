@@ -26,6 +26,7 @@ A peer that does not import is skipped with the import error; a run that fails i
 failed with its error, never left out.
 
     python bench/peers.py [--quick] [--systems plain,testbed] [--repeats N] [--out DIR]
+A full run also runs every catalog FMU, FMI 3.0 and 2.0, alone in each master (bench/_fmu_compat.py).
 Writes <out>/peers.json and <out>/peers.png (error against wall time, log-log) and prints the
 README's comparison table (markdown, from the JSON).
 """
@@ -49,6 +50,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # the bench-local helpers (not a package)
 
+from _fmu_compat import compat_matrix  # noqa: E402
 from _peer_masters import RUNNERS, FmuSystem, available  # noqa: E402
 from _stroke_fmu import build_stroke_fmu  # noqa: E402
 from featherstar.cosim.scene.data import Scene, scene_from_dict  # noqa: E402
@@ -345,6 +347,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         for name in args.systems:
             system = SYSTEMS[name]
             result["systems"][name] = measure_system(system, args.periods or system.periods, args.repeats, Path(folder))
+        if args.quick:
+            result["fmu_compatibility"] = "not run with --quick (a full run builds all ten FMUs)"
+        else:
+            print("every catalog FMU, FMI 3.0 and 2.0, alone in each master", flush=True)
+            result["fmu_compatibility"] = compat_matrix(Path(folder) / "compat")
     result["machine"]["load_avg_1min_at_end"] = os.getloadavg()[0]
     result["total_wall_s"] = time.perf_counter() - wall0
     result["readme_table_md"] = markdown_table(result)

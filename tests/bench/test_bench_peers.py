@@ -120,3 +120,23 @@ def test_bit_identical_groups():
     a = np.array([1.0, 2.0])
     groups = peers.identical_records({"x": a, "y": a.copy(), "z": a + np.array([0.0, 1e-12])})
     assert groups == [["x", "y"]]
+
+
+def test_the_servo_fmu_fmi_3_and_2_in_every_master_each_in_its_own_process(tmp_path):
+    """A master that dies on an FMU (measured: libcosim 0.11 of libcosimpy 0.0.6 gets SIGSEGV on
+    every FMI 3.0 FMU) is reported as that crash; the bench itself goes on."""
+    compat = _load("_fmu_compat")
+    matrix = compat.compat_matrix(tmp_path, ["servo"], log=lambda line: None)["servo"]
+    for version in ("fmi3", "fmi2"):
+        entry = matrix[version]
+        assert entry["fmpy"] == {"status": "ok", "moves": True}
+        for master, module in (("libcosim", "libcosimpy"), ("ecos", "ecospy")):
+            row = entry[master]
+            if _importable(module):
+                assert row["status"] == "skipped" and module in row["reason"]
+            elif row["status"] == "ok":
+                # the same FMU calls at the same step: the same numbers to rounding (measured <= 7e-17 rad)
+                assert row["max_abs_diff_to_fmpy"] < 1e-12, (version, master, row)
+            else:
+                assert (master, version, row["status"]) == ("libcosim", "fmi3", "failed"), row
+                assert row["reason"] == "RuntimeError: libcosim crashed (SIGSEGV) running servo.fmu"
