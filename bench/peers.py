@@ -33,6 +33,7 @@ README's comparison table (markdown, from the JSON).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 import os
@@ -121,6 +122,12 @@ def shipped_scene_data(system: System) -> dict:
     return data
 
 
+def scene_stroke(system: System) -> Stroke:
+    """The shipped scene's stroke controller, which the stroke FMU then reproduces."""
+    controller = shipped_scene_data(system)["blocks"]["controller"]
+    return Stroke(**{f.name: float(controller[f.name]) for f in dataclasses.fields(Stroke) if f.name in controller})
+
+
 def feather_parameters(system: System, stroke: Stroke) -> dict[str, float]:
     """What featherstar sets on the feather in the shipped scene, for the peers to set too: the
     scene's parameters that this morphology has, and the stroke amplitude the stroke block shares."""
@@ -185,8 +192,7 @@ def peer_runs(system: System, fmus: dict[str, Path], start: dict[str, float], st
               stop_s: float) -> list[tuple[str, str, Callable[[], np.ndarray] | str]]:
     """(label, coupling, run or the reason it cannot run) of every peer on the system."""
     reasons = available()
-    coupled = FmuSystem({k: v for k, v in fmus.items()}, system.connections(),
-                        {k: v for k, v in start.items()}, STEP_S, stop_s)
+    coupled = FmuSystem(dict(fmus), system.connections(), dict(start), STEP_S, stop_s)
     out: list[tuple[str, str, Callable[[], np.ndarray] | str]] = []
     for peer, label in (("libcosim", "libcosim (libcosimpy)"), ("ecos", "Ecos (ecospy)")):
         out.append((label, "fixed-step co-simulation",
@@ -216,7 +222,7 @@ def relative(value: float, reference: float) -> float:
 
 def measure_system(system: System, periods: int, repeats: int, folder: Path, log: Callable[[str], None] = print) -> dict:
     """Every run on one system against the tight reference; rows with errors and wall-time ratios."""
-    stroke = Stroke()
+    stroke = scene_stroke(system)
     settle = periods - periods // 2
     short = {"master.periods": periods, "metrics.settle_periods": settle, "master.step_s": STEP_S}
     fmus = build_fmus(system, stroke, folder / system.name)
