@@ -21,7 +21,8 @@ Every FMU integrates inside at rtol 1e-6 (the CS shell's default, and feathersta
 Reference: featherstar strong on the shipped scene at rtol 1e-10, atol 1e-12. Accuracy: relative
 error of TR and mean thrust over the scene's metric window, and the largest thrust difference
 over the whole run relative to the reference's peak thrust. Wall time: each run end to end
-(loading the FMUs included), best of --repeats, as a ratio to featherstar strong in the same run.
+(loading the FMUs included), best of --repeats taken in rounds, as a ratio to featherstar strong in
+the same run.
 A peer that does not import is skipped with the import error; a run that fails is reported
 failed with its error, never left out.
 
@@ -160,13 +161,29 @@ def fmu_scene(system: System, fmus: dict[str, Path], start_values: dict[str, flo
                             "blocks": blocks}, name=f"peers-{system.name}")
 
 
-def best_of(repeats: int, run: Callable[[], np.ndarray]) -> tuple[np.ndarray, list[float]]:
-    walls, values = [], None
+def timed_rounds(runs: dict[str, Callable[[], np.ndarray]], repeats: int, n_samples: int
+                 ) -> dict[str, tuple[np.ndarray, list[float]] | str]:
+    """Each run `repeats` times, in rounds (every run once, then again): a burst of load on this
+    shared machine then slows one round of every run, not every repeat of one. Per run: the first
+    round's record and every wall time, or the error that stopped it (a failure is a result)."""
+    out: dict[str, tuple[np.ndarray, list[float]] | str] = {}
     for _ in range(repeats):
-        t0 = time.perf_counter()
-        values = run()
-        walls.append(time.perf_counter() - t0)
-    return values, walls
+        for label, run in runs.items():
+            if isinstance(out.get(label), str):
+                continue
+            try:
+                t0 = time.perf_counter()
+                values = np.asarray(run(), dtype=float)
+                wall = time.perf_counter() - t0
+                if values.shape != (n_samples,) or not np.all(np.isfinite(values)):
+                    raise RuntimeError(f"recorded {values.size} thrust samples, {int(np.sum(~np.isfinite(values)))} "
+                                       f"not finite; expected {n_samples} finite")
+            except Exception as exc:  # a peer's failure is reported, and the bench goes on
+                out[label] = f"{type(exc).__name__}: {exc}"
+                continue
+            record, walls = out.get(label, (values, []))
+            out[label] = (record, [*walls, wall])
+    return out
 
 
 def featherstar_runs(system: System, fmus: dict[str, Path], start: dict[str, float], short: dict[str, float],
@@ -244,23 +261,17 @@ def measure_system(system: System, periods: int, repeats: int, folder: Path, log
 
     rows: list[dict[str, Any]] = []
     traces: dict[str, np.ndarray] = {}
-    for label, coupling, run in (*featherstar_runs(system, fmus, start, short, stroke),
-                                 *peer_runs(system, fmus, start, stroke, stop_s)):
+    plan = [*featherstar_runs(system, fmus, start, short, stroke), *peer_runs(system, fmus, start, stroke, stop_s)]
+    measured = timed_rounds({label: run for label, _, run in plan if not isinstance(run, str)}, repeats, grid.size)
+    for label, coupling, run in plan:
         row: dict[str, Any] = {"run": label, "coupling": coupling}
-        if isinstance(run, str):
-            rows.append({**row, "status": "skipped", "reason": run})
-            log(f"  {label:32s} skipped: {run}")
+        outcome = run if isinstance(run, str) else measured[label]
+        if isinstance(outcome, str):
+            status = "skipped" if isinstance(run, str) else "failed"
+            rows.append({**row, "status": status, "reason": outcome})
+            log(f"  {label:32s} {status}: {outcome}")
             continue
-        try:
-            thrust, walls = best_of(repeats, run)
-            thrust = np.asarray(thrust, dtype=float)
-            if thrust.shape != grid.shape or not np.all(np.isfinite(thrust)):
-                raise RuntimeError(f"recorded {thrust.shape[0]} thrust samples, {int(np.sum(~np.isfinite(thrust)))} "
-                                   f"not finite; expected {grid.shape[0]} finite")
-        except Exception as exc:  # a peer's failure is a result: reported, the bench goes on
-            rows.append({**row, "status": "failed", "reason": f"{type(exc).__name__}: {exc}"})
-            log(f"  {label:32s} FAILED: {rows[-1]['reason']}")
-            continue
+        thrust, walls = outcome
         m = thrust_metrics(grid, thrust, a, b, stroke.period_s, periods // 2)
         row.update(status="ok", wall_s=min(walls), wall_s_each=walls, thrust_ratio=m["thrust_ratio"],
                    mean_thrust_N=m["mean_thrust_N"], tr_rel_error=relative(m["thrust_ratio"], ref["thrust_ratio"]),

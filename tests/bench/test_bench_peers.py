@@ -140,3 +140,22 @@ def test_the_servo_fmu_fmi_3_and_2_in_every_master_each_in_its_own_process(tmp_p
             else:
                 assert (master, version, row["status"]) == ("libcosim", "fmi3", "failed"), row
                 assert row["reason"] == "RuntimeError: libcosim crashed (SIGSEGV) running servo.fmu"
+
+
+def test_timed_rounds_reports_a_failing_or_non_finite_run_and_keeps_timing_the_others():
+    peers = _load("peers")
+    calls = {"flaky": 0}
+
+    def flaky():
+        calls["flaky"] += 1
+        if calls["flaky"] == 2:
+            raise OSError("device vanished")
+        return np.zeros(3)
+
+    out = peers.timed_rounds({"good": lambda: np.ones(3), "flaky": flaky,
+                              "nan": lambda: np.array([0.0, math.nan, 1.0]), "short": lambda: np.ones(2)}, 3, 3)
+    record, walls = out["good"]
+    assert np.array_equal(record, np.ones(3)) and len(walls) == 3 and all(w >= 0 for w in walls)
+    assert out["flaky"] == "OSError: device vanished" and calls["flaky"] == 2
+    assert out["nan"] == "RuntimeError: recorded 3 thrust samples, 1 not finite; expected 3 finite"
+    assert out["short"] == "RuntimeError: recorded 2 thrust samples, 0 not finite; expected 3 finite"
