@@ -17,22 +17,23 @@ def markdown_table(result: dict[str, Any]) -> str:
     settings = result["settings"]
     lines = [f"Thrust against featherstar strong at rtol {settings['reference_rtol']:g} (relative errors); "
              f"co-simulation at a {1e3 * settings['step_s']:g} ms step, every FMU at rtol {settings['rtol']:g}; "
-             f"wall time as a ratio to featherstar strong in the same run (best of {settings['repeats']}).", ""]
+             f"wall and CPU time as ratios to featherstar strong's in the same run (best of {settings['repeats']}).", ""]
     for name, system in result["systems"].items():
         window = system["metric_window_s"]
         lines += [f"**{name}**: {system['description']}, {system['periods']} periods, TR and mean thrust over "
                   f"{window[0]:g}-{window[1]:g} s", "",
-                  "| run | coupling | TR error | mean thrust error | max \\|ΔT\\| / peak, first period | wall time |",
-                  "|---|---|---|---|---|---|"]
+                  "| run | coupling | TR error | mean thrust error | max \\|ΔT\\| / peak, first period | wall time | CPU time |",
+                  "|---|---|---|---|---|---|---|"]
         for row in system["rows"]:
             if row["status"] != "ok":
-                lines.append(f"| {row['run']} | {row['coupling']} | {row['status']}: {row['reason']} | | | |")
+                lines.append(f"| {row['run']} | {row['coupling']} | {row['status']}: {row['reason']} | | | | |")
                 continue
-            ratio = row.get("wall_over_featherstar_strong")
+            ratio, cpu_ratio = row.get("wall_over_featherstar_strong"), row.get("cpu_over_featherstar_strong")
             wall = f"{ratio:.2f}x" if ratio is not None else f"{row['wall_s']:.2f} s"
+            cpu = f"{cpu_ratio:.2f}x" if cpu_ratio is not None else f"{row['cpu_s']:.2f} s"
             lines.append(f"| {row['run']} | {row['coupling']} | {_sci(row['tr_rel_error'])} | "
                          f"{_sci(row['mean_thrust_rel_error'])} | {_sci(row['first_period_thrust_error_rel_peak'])} | "
-                         f"{wall} |")
+                         f"{wall} | {cpu} |")
         same = system.get("identical_records") or []
         if same:
             lines += ["", "Bit-identical thrust records: " + "; ".join(" = ".join(g) for g in same) + "."]

@@ -84,7 +84,8 @@ NOTES = [
     "thrust errors below ~1e-6 and the whole-run max |dT| measure the chaos as much as the method; "
     "first_period_thrust_error_rel_peak (the first stroke period, before they part) does not.",
     "Wall times are end to end (FMU loading, and featherstar's plan, included) on a shared 2-core machine: "
-    "compare the ratios within one run.",
+    "compare the ratios within one run. CPU times are the process's over the same span (every thread; "
+    "libcosim may step its slaves on worker threads), less sensitive to the machine's other users.",
 ]
 STRONG = "featherstar strong"
 
@@ -162,27 +163,28 @@ def fmu_scene(system: System, fmus: dict[str, Path], start_values: dict[str, flo
 
 
 def timed_rounds(runs: dict[str, Callable[[], np.ndarray]], repeats: int, n_samples: int
-                 ) -> dict[str, tuple[np.ndarray, list[float]] | str]:
+                 ) -> dict[str, tuple[np.ndarray, list[float], list[float]] | str]:
     """Each run `repeats` times, in rounds (every run once, then again): a burst of load on this
     shared machine then slows one round of every run, not every repeat of one. Per run: the first
-    round's record and every wall time, or the error that stopped it (a failure is a result)."""
-    out: dict[str, tuple[np.ndarray, list[float]] | str] = {}
+    round's record, every wall time and every CPU time (the process's, all its threads: less
+    sensitive to other users of the machine), or the error that stopped it (a failure is a result)."""
+    out: dict[str, tuple[np.ndarray, list[float], list[float]] | str] = {}
     for _ in range(repeats):
         for label, run in runs.items():
             if isinstance(out.get(label), str):
                 continue
             try:
-                t0 = time.perf_counter()
+                t0, c0 = time.perf_counter(), time.process_time()
                 values = np.asarray(run(), dtype=float)
-                wall = time.perf_counter() - t0
+                wall, cpu = time.perf_counter() - t0, time.process_time() - c0
                 if values.shape != (n_samples,) or not np.all(np.isfinite(values)):
                     raise RuntimeError(f"recorded {values.size} thrust samples, {int(np.sum(~np.isfinite(values)))} "
                                        f"not finite; expected {n_samples} finite")
             except Exception as exc:  # a peer's failure is reported, and the bench goes on
                 out[label] = f"{type(exc).__name__}: {exc}"
                 continue
-            record, walls = out.get(label, (values, []))
-            out[label] = (record, [*walls, wall])
+            record, walls, cpus = out.get(label, (values, [], []))
+            out[label] = (record, [*walls, wall], [*cpus, cpu])
     return out
 
 
@@ -271,9 +273,10 @@ def measure_system(system: System, periods: int, repeats: int, folder: Path, log
             rows.append({**row, "status": status, "reason": outcome})
             log(f"  {label:32s} {status}: {outcome}")
             continue
-        thrust, walls = outcome
+        thrust, walls, cpus = outcome
         m = thrust_metrics(grid, thrust, a, b, stroke.period_s, periods // 2)
-        row.update(status="ok", wall_s=min(walls), wall_s_each=walls, thrust_ratio=m["thrust_ratio"],
+        row.update(status="ok", wall_s=min(walls), wall_s_each=walls, cpu_s=min(cpus), cpu_s_each=cpus,
+                   thrust_ratio=m["thrust_ratio"],
                    mean_thrust_N=m["mean_thrust_N"], tr_rel_error=relative(m["thrust_ratio"], ref["thrust_ratio"]),
                    mean_thrust_rel_error=relative(m["mean_thrust_N"], ref["mean_thrust_N"]),
                    max_thrust_error_rel_peak=float(np.max(np.abs(thrust - reference))) / peak,
@@ -286,6 +289,7 @@ def measure_system(system: System, periods: int, repeats: int, folder: Path, log
     for row in rows:
         if row["status"] == "ok" and strong is not None:
             row["wall_over_featherstar_strong"] = row["wall_s"] / strong["wall_s"]
+            row["cpu_over_featherstar_strong"] = row["cpu_s"] / strong["cpu_s"]
     return {"description": system.description, "scene": system.scene, "feather_options": system.feather_options,
             "fmus": {k: v.name for k, v in fmus.items()}, "start_values": start, "periods": periods,
             "metric_window_s": [a, b], "reference": {"wall_s": ref_wall, "thrust_ratio": ref["thrust_ratio"],

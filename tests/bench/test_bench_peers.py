@@ -62,6 +62,7 @@ def test_strong_is_far_nearer_the_reference_than_every_co_simulation(result):
                     "first_period_thrust_error_rel_peak"):
             assert math.isfinite(row[key]) and 10 * strong[key] < row[key], (row["run"], key)
         assert row["wall_s"] > 0 and math.isfinite(row["wall_over_featherstar_strong"])
+        assert row["cpu_s"] > 0 and math.isfinite(row["cpu_over_featherstar_strong"])
 
 
 @pytest.mark.parametrize("label", list(PEERS))
@@ -91,7 +92,7 @@ def test_the_readme_table_comes_from_the_json(result):
     for row in _rows(result).values():
         assert f"| {row['run']} | {row['coupling']} |" in table
         if row["status"] == "ok":
-            assert f"{row['wall_over_featherstar_strong']:.2f}x" in table
+            assert f"{row['wall_over_featherstar_strong']:.2f}x | {row['cpu_over_featherstar_strong']:.2f}x |" in table
 
 
 def test_a_peer_that_does_not_import_is_skipped_with_its_error(monkeypatch):
@@ -154,8 +155,8 @@ def test_timed_rounds_reports_a_failing_or_non_finite_run_and_keeps_timing_the_o
 
     out = peers.timed_rounds({"good": lambda: np.ones(3), "flaky": flaky,
                               "nan": lambda: np.array([0.0, math.nan, 1.0]), "short": lambda: np.ones(2)}, 3, 3)
-    record, walls = out["good"]
-    assert np.array_equal(record, np.ones(3)) and len(walls) == 3 and all(w >= 0 for w in walls)
+    record, walls, cpus = out["good"]
+    assert np.array_equal(record, np.ones(3)) and len(walls) == len(cpus) == 3 and min(walls + cpus) >= 0
     assert out["flaky"] == "OSError: device vanished" and calls["flaky"] == 2
     assert out["nan"] == "RuntimeError: recorded 3 thrust samples, 1 not finite; expected 3 finite"
     assert out["short"] == "RuntimeError: recorded 2 thrust samples, 0 not finite; expected 3 finite"
