@@ -2,7 +2,8 @@
 
 The package is a zip holding SystemStructure.ssd and, under resources/, one FMU per FMU block:
 a model block's FMU is built (FMI 3.0, or 2.0 for older importers), an FMU file is copied. In
-SystemStructure.ssd every FMU block is an ssd:Component with its ports as connectors and the
+SystemStructure.ssd every FMU block is an ssd:Component with its ports as connectors (with their
+units, defined in ssd:Units by SI base units; none on a waived connection's ends) and the
 parameter values the run would use as an inline ssv:ParameterSet; connections between FMU
 blocks are ssd:Connections.
 
@@ -35,6 +36,7 @@ from pathlib import Path
 from typing import Any, Callable, Mapping
 
 from ...fmu_src.model import Model
+from ...fmu_src.si_units import base_unit
 from ..errors import SceneError
 from ..scene.blocks import ResolvedBlock
 from ..scene.data import MasterSpec, MetricsSpec, Scene
@@ -178,8 +180,11 @@ def _system_structure(scene: Scene, plan: Plan, sources: dict[str, str],
             ET.SubElement(connector, _q("ssc", "Real"))
 
     elements = ET.SubElement(system, _q("ssd", "Elements"))
+    # a waived connection joins ports whose units differ on purpose: SSP tools would convert
+    unitless = {(ref.block, ref.port) for c in scene.unit_waivers for ref in (c.src, c.dst)}
+    units: set[str] = set()
     for name, source in sources.items():
-        _component(elements, blocks[name], source, stand_ins.get(name))
+        units |= _component(elements, blocks[name], source, stand_ins.get(name), unitless)
     if ssd_connections:
         connections = ET.SubElement(system, _q("ssd", "Connections"))
         for attributes in ssd_connections:
@@ -190,25 +195,37 @@ def _system_structure(scene: Scene, plan: Plan, sources: dict[str, str],
     ET.SubElement(annotation, _q("fs", "Scene"), {"format": "json"}).text = json.dumps(
         _featherstar_part(scene, set(sources) - set(stand_ins), featherstar_connections, sorted(stand_ins)),
         indent=1, sort_keys=True)
+    if units:
+        definitions = ET.SubElement(root, _q("ssd", "Units"))
+        for unit in sorted(units):
+            ET.SubElement(ET.SubElement(definitions, _q("ssc", "Unit"), {"name": unit}), _q("ssc", "BaseUnit"),
+                          {k: str(v) for k, v in (base_unit(unit) or {}).items()})
     # the run's length, also when given in stroke periods (the annotation keeps `periods`)
     ET.SubElement(root, _q("ssd", "DefaultExperiment"), {"startTime": "0.0", "stopTime": _number(plan.t_end_s)})
     ET.indent(root, space="  ")
     return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode")
 
 
-def _component(elements: ET.Element, rb: ResolvedBlock, source: str, stand_in: dict[str, float] | None) -> None:
+def _component(elements: ET.Element, rb: ResolvedBlock, source: str, stand_in: dict[str, float] | None,
+               unitless: set[tuple[str, str]]) -> set[str]:
+    """Write the component; returns the units its connectors declare (those with SI base units)."""
     component = ET.SubElement(elements, _q("ssd", "Component"),
                               {"name": rb.name, "type": FMU_TYPE, "source": source})
     if rb.spec.description:
         component.set("description", rb.spec.description)
     connectors = ET.SubElement(component, _q("ssd", "Connectors"))
     values = _parameter_values(rb) if stand_in is None else stand_in
+    units = set()
     for kind, ports in (("input", rb.inputs), ("output", rb.outputs), ("parameter", dict.fromkeys(values))):
         for port in ports:
             connector = ET.SubElement(connectors, _q("ssd", "Connector"), {"name": port, "kind": kind})
-            ET.SubElement(connector, _q("ssc", "Real"))
+            real = ET.SubElement(connector, _q("ssc", "Real"))
+            unit = getattr(ports[port], "unit", "").strip() if kind != "parameter" else ""
+            if unit and (rb.name, port) not in unitless and base_unit(unit) is not None:
+                real.set("unit", unit)
+                units.add(unit)
     if not values:
-        return
+        return units
     bindings = ET.SubElement(component, _q("ssd", "ParameterBindings"))
     binding = ET.SubElement(bindings, _q("ssd", "ParameterBinding"))
     holder = ET.SubElement(binding, _q("ssd", "ParameterValues"))
@@ -217,6 +234,7 @@ def _component(elements: ET.Element, rb: ResolvedBlock, source: str, stand_in: d
     for name, value in values.items():
         parameter = ET.SubElement(parameters, _q("ssv", "Parameter"), {"name": name})
         ET.SubElement(parameter, _q("ssv", "Real"), {"value": _number(value)})
+    return units
 
 
 def _featherstar_part(scene: Scene, in_ssp: set[str], connections: list[str], stand_ins: list[str]) -> dict[str, Any]:

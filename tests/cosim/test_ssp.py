@@ -107,6 +107,9 @@ def test_testbed_round_trip_on_fmi3_and_fmi2(tmp_path):
                 'endConnector="controller.angle_rad" />' in ssd) == system_outputs
         assert all(f'<ssd:Component name="{n}"' in ssd for n in ("controller", "tank", "servo", "feather"))
         assert scene.master.periods == 1 and scene.master.t_end_s == 0.0
+        # connector units, defined by their SI base units
+        assert ssd.count('<ssc:Real unit="N.m" />') == 2   # the feather's torque and the servo's load
+        assert re.search(r'<ssc:Unit name="N.m">\s*<ssc:BaseUnit kg="1" m="2" s="-2" />', ssd)
         assert_same_scene(scene, load_scene("testbed").with_overrides(short))
         back = run_scene(package)
         if fmi_version == 3:
@@ -116,6 +119,22 @@ def test_testbed_round_trip_on_fmi3_and_fmi2(tmp_path):
             for name in direct.signals:
                 assert np.max(np.abs(direct[name] - back[name])) <= 1e-10, name
         assert back.summary["thrust_ratio"] == direct.summary["thrust_ratio"]
+
+
+def test_a_waived_connection_is_exported_without_units_and_reads_back_waived(tmp_path):
+    """The waiver says the numbers agree although the units differ: its two connectors carry no
+    unit, else an SSP tool would convert; the waiver itself travels in the annotation."""
+    blocks = {**MIXED["blocks"], "source": {"kind": "constant", "outputs": {"u": {"value": 1.0, "unit": "m"}}}}
+    scene = make_scene(OSCILLATOR, **dict(MIXED, blocks=blocks, units={"waive": ["source.u -> g.u"]}))
+    package = export_ssp(scene, tmp_path / "waived.ssp", OVERRIDES)
+    root = ET.fromstring(zipfile.ZipFile(package).read(SSD_NAME))
+    declared = {(c.get("name"), k.get("name")): k[0].get("unit")
+                for c in root.iterfind(".//ssd:Component", NS) for k in c.iterfind("ssd:Connectors/ssd:Connector", NS)}
+    assert declared[("source", "u")] is None and declared[("g", "u")] is None
+    assert declared[("a", "position_m")] == "m" and declared[("b", "force_N")] == "N"
+    back = load_scene(package)
+    assert [str(c) for c in back.unit_waivers] == ["source.u -> g.u"]
+    assert_identical(run_scene(package), run_scene(scene, OVERRIDES))
 
 
 FOREIGN_SSD = """<?xml version="1.0" encoding="UTF-8"?>
