@@ -297,7 +297,7 @@ class _SystemReader:
             elif local == "ssd:Connectors":
                 for connector in child.iterfind(_q("ssd", "Connector")):
                     self._note_unit(name, connector)
-            elif local != "ssd:Connectors" and local.split(":")[-1] not in _IGNORED:
+            elif local.split(":")[-1] not in _IGNORED:
                 self.refuse(f"{local} in {label}: featherstar cannot map it")
         blocks[name] = block
 
