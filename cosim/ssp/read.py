@@ -12,7 +12,9 @@ blocks SSP has no component type for, the master and metrics settings; system co
 
 A connection between two components with an ssc:LinearTransformation (y = factor x + offset)
 becomes a `gain` block between them (named `transform_<n>`, its ports without units, so the plan
-notes the connection as not unit-checked).
+notes the connection as not unit-checked), unless featherstar's annotation says the
+transformation is one of its own gain blocks (`transformed`), which the annotation wires.
+Components the annotation lists as `stand_ins` (a stroke's FMU) are replaced by its blocks.
 
 What featherstar cannot map is refused, naming the element: nested systems, signal
 dictionaries, non-FMU components, parameter mappings, other connection transformations
@@ -23,18 +25,14 @@ geometry are ignored.
 """
 from __future__ import annotations
 
-import hashlib
 import json
 import math
-import os
-import shutil
-import tempfile
 import xml.etree.ElementTree as ET
-import zipfile
 from pathlib import Path, PurePosixPath
 from typing import Any
 
 from ..errors import SceneError
+from .package import unpack
 
 NS = {
     "ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
@@ -79,7 +77,7 @@ def read_ssp(path: str | Path) -> tuple[dict[str, Any], dict[str, Any]]:
     where = f"SSP package '{path}'"
     if not path.is_file():
         raise SceneError(f"{where}: no such file")
-    folder = _unpack(path, where)
+    folder = unpack(path, where, SSD_NAME)
     ssd_path = folder / SSD_NAME
     if not ssd_path.is_file():
         raise SceneError(f"{where}: no {SSD_NAME} at the top of the package")
@@ -94,36 +92,6 @@ def read_ssp(path: str | Path) -> tuple[dict[str, Any], dict[str, Any]]:
     return data, overrides
 
 
-def _unpack(path: Path, where: str) -> Path:
-    """Unzip once into the cache, keyed by the package's content; FMU paths stay valid after the
-    call (a run loads its FMUs later)."""
-    from ...fmu_src.export import cache_dir
-
-    digest = hashlib.sha256(path.read_bytes()).hexdigest()[:16]
-    target = cache_dir() / "ssp" / f"{path.stem}-{digest}"
-    if target.is_dir():
-        return target
-    try:
-        archive = zipfile.ZipFile(path)
-    except zipfile.BadZipFile:
-        raise SceneError(f"{where}: not a zip archive (an .ssp is a zip with {SSD_NAME} at its top)") from None
-    with archive:
-        for member in archive.namelist():
-            parts = PurePosixPath(member).parts
-            if PurePosixPath(member).is_absolute() or ".." in parts:
-                raise SceneError(f"{where}: archive member '{member}' points outside the package")
-        target.parent.mkdir(parents=True, exist_ok=True)
-        staging = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
-        try:
-            archive.extractall(staging)
-            os.replace(staging, target)
-        except OSError:
-            shutil.rmtree(staging, ignore_errors=True)
-            if not target.is_dir():  # not a concurrent unpacker that got there first
-                raise
-    return target
-
-
 class _SystemReader:
     """Reads SystemStructure.ssd into scene data, collecting every problem (`problems`)."""
 
@@ -132,6 +100,7 @@ class _SystemReader:
         self.where = where
         self.problems: list[str] = []
         self.units: dict[tuple[str | None, str], str] = {}   # (element or None, connector) -> declared unit
+        self.transformed: set[str] = set()
 
     def refuse(self, message: str) -> None:
         self.problems.append(message)
@@ -209,6 +178,8 @@ class _SystemReader:
         # components that stand in for featherstar blocks (a stroke's FMU, for other tools):
         # featherstar runs the blocks themselves
         stand_ins = set(extra.pop("stand_ins", []))
+        # connections whose ssc:LinearTransformation is a gain block of the annotation (wired there)
+        self.transformed = set(extra.pop("transformed", []))
         for name in own_blocks:
             if name in blocks and name not in stand_ins:
                 self.refuse(f"block '{name}' of the {FEATHERSTAR_ANNOTATION} annotation has the name of an ssd:Component")
@@ -395,6 +366,8 @@ class _SystemReader:
         if all(units) and units[0] != units[1]:
             self.refuse(f"{label}: its connectors' units differ ('{units[0]}' -> '{units[1]}'); SSP tools convert "
                         "between them, featherstar converts no unit (give both connectors the same unit)")
+            return None
+        if linear is not None and f"{start[0]}.{start[1]} -> {end[0]}.{end[1]}" in self.transformed:
             return None
         if linear is not None:
             return self._transformed(linear, f"{start[0]}.{start[1]}", f"{end[0]}.{end[1]}", blocks, label)

@@ -256,6 +256,24 @@ def test_a_linear_transformation_between_components_is_a_gain_block(mixed_ssp, t
                for note in back.info["notes"])
 
 
+def test_a_gain_between_components_is_exported_as_a_linear_transformation(tmp_path):
+    """Other tools see a.position_m -> b.other_position_m with y = 0.5 x + 0.01 (no system
+    connector, so the package stays FMUs only); featherstar reads back its gain block."""
+    by_hand = dict(MIXED, connections=[c for c in MIXED["connections"] if c != "a.position_m -> b.other_position_m"]
+                   + ["a.position_m -> half.u", "half.y -> b.other_position_m"],
+                   blocks={**MIXED["blocks"], "half": {"kind": "gain", "gain": 0.5, "offset": 0.01,
+                                                       "unit_in": "m", "unit_out": "m"}})
+    scene = make_scene(OSCILLATOR, **by_hand)
+    package = export_ssp(scene, tmp_path / "gain.ssp", OVERRIDES)
+    ssd = zipfile.ZipFile(package).read(SSD_NAME).decode()
+    assert re.search(r'<ssd:Connection startElement="a" startConnector="position_m" endElement="b" '
+                     r'endConnector="other_position_m">\s*<ssc:LinearTransformation factor="0.5" offset="0.01" />', ssd)
+    assert "half.u" not in ssd.split("<ssd:Annotations>")[0]
+    back = load_scene(package)
+    assert_same_scene(back, scene.with_overrides(OVERRIDES))
+    assert_identical(run_scene(package), run_scene(scene, OVERRIDES))
+
+
 def test_connectors_with_different_units_are_refused_and_equal_ones_accepted(mixed_ssp, tmp_path):
     same = _with_connector_units(mixed_ssp, tmp_path / "same.ssp", {("a", "position_m"): "m", ("b", "other_position_m"): "m"})
     load_scene(same)
