@@ -367,6 +367,11 @@ def test_cli_export_and_run(mixed_ssp, tmp_path, capsys):
     assert main(["run", str(package), "-q", "--no-figure", "--out", str(tmp_path / "run")]) == 0
     assert (tmp_path / "run" / "results.csv").is_file()
     capsys.readouterr()
+    with_outputs = tmp_path / "out" / "outputs.ssp"
+    assert main(["export-ssp", str(scene_file), "--out", str(with_outputs), "--system-outputs"]) == 0
+    assert '<ssd:Connector name="g.y" kind="output">' in zipfile.ZipFile(with_outputs).read(SSD_NAME).decode()
+    assert '<ssd:Connector name="g.y" kind="output">' not in zipfile.ZipFile(package).read(SSD_NAME).decode()
+    capsys.readouterr()
     assert main(["run", str(tmp_path / "nothing.ssp"), "-q"]) == 2
     assert f"SSP package '{tmp_path / 'nothing.ssp'}': no such file" in capsys.readouterr().err
     with pytest.raises(SystemExit):
@@ -389,7 +394,7 @@ kind = "gain"
 gain = -1.0
 [blocks.rec]
 kind = "recorder"
-signals = ["scale.y"]
+signals = ["scale.y", "g.y"]
 """
 
 
