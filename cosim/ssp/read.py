@@ -175,11 +175,14 @@ class _SystemReader:
                 blocks[component]["parameters"] = values
         annotated = bool(extra)
         own_blocks = extra.pop("blocks", {})
+        if not (isinstance(own_blocks, dict) and all(isinstance(t, dict) for t in own_blocks.values())):
+            self.refuse(f"ssc:Annotation '{FEATHERSTAR_ANNOTATION}': 'blocks' must map block names to tables")
+            own_blocks = {}
         # components that stand in for featherstar blocks (a stroke's FMU, for other tools):
         # featherstar runs the blocks themselves
-        stand_ins = set(extra.pop("stand_ins", []))
+        stand_ins = self._names(extra.pop("stand_ins", []), "stand_ins")
         # connections whose ssc:LinearTransformation is a gain block of the annotation (wired there)
-        self.transformed = set(extra.pop("transformed", []))
+        self.transformed = self._names(extra.pop("transformed", []), "transformed")
         for name in own_blocks:
             if name in blocks and name not in stand_ins:
                 self.refuse(f"block '{name}' of the {FEATHERSTAR_ANNOTATION} annotation has the name of an ssd:Component")
@@ -187,7 +190,8 @@ class _SystemReader:
             self.refuse(f"the {FEATHERSTAR_ANNOTATION} annotation's stand-in '{name}' is no ssd:Component of the "
                         "system with a block of that name in the annotation")
         blocks.update(own_blocks)
-        connections = list(extra.pop("connections", []))
+        raw_connections = extra.pop("connections", [])
+        connections = list(raw_connections) if self._names(raw_connections, "connections") else []
         outputs = []
         for connection in system.iterfind(f"{_q('ssd', 'Connections')}/{_q('ssd', 'Connection')}"):
             mapped = self._connection(connection, blocks, own_blocks, connectors)
@@ -204,6 +208,12 @@ class _SystemReader:
         data["blocks"] = blocks
         data["connections"] = connections
         return data, overrides
+
+    def _names(self, value: Any, key: str) -> set[str]:
+        if isinstance(value, list) and all(isinstance(v, str) for v in value):
+            return set(value)
+        self.refuse(f"ssc:Annotation '{FEATHERSTAR_ANNOTATION}': '{key}' must be a list of strings, not {value!r:.80}")
+        return set()
 
     def _annotation(self, annotations: ET.Element | None) -> tuple[dict[str, Any], dict[str, Any]]:
         if annotations is None:
