@@ -333,9 +333,16 @@ def scene_from_dict(data: Mapping[str, Any], *, name: str = "", source: str = ""
         units = {}
     unit_waivers = _connections(units.get("waive", []), "units.waive", problems)
     aliases = {}
-    for alias, members in dict(data.get("aliases", {})).items():
+    raw_aliases = data.get("aliases", {})
+    if not isinstance(raw_aliases, Mapping):
+        problems.append("[aliases] must map a name to a list of block names")
+        raw_aliases = {}
+    for alias, members in raw_aliases.items():
         if isinstance(members, str):
             members = [members]
+        if not (isinstance(members, (list, tuple)) and all(isinstance(m, str) for m in members)):
+            problems.append(f"alias '{alias}' must name a block or a list of blocks, not {members!r:.60}")
+            continue
         aliases[alias] = tuple(members)
     master = _dataclass_from(MasterSpec, data.get("master", {}), "master", problems)
     metrics = _dataclass_from(MetricsSpec, data.get("metrics", {}), "metrics", problems)

@@ -111,6 +111,8 @@ def plan(scene: Scene, outputs: Sequence[str] | None = None) -> Plan:
             resolved[spec.name] = resolve(spec)
         except SceneError as exc:
             problems.extend(exc.problems)
+        except (TypeError, ValueError) as exc:   # a table from elsewhere with a value of the wrong shape
+            problems.append(f"block '{spec.name}' ({spec.kind}): a setting has the wrong type or shape ({exc})")
     amplitude_notes = _share_parameters(resolved)
     known = ", ".join(names)
 

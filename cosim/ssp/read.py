@@ -49,6 +49,13 @@ FEATHERSTAR_ANNOTATION = "org.featherstar.scene"
 #: The recorder that records the system's outputs (connectors of kind output fed by components).
 OUTPUTS_RECORDER = "system_outputs"
 
+#: The block kinds the annotation may hold: data only (no Python factory, no FMU outside the package).
+DATA_KINDS = ("stroke", "constant", "gain", "recorder")
+#: What each key of featherstar's annotation holds (a package is data: anything else is refused).
+_ANNOTATION_TYPES = {"description": str, "blocks": dict, "connections": list, "overrides": dict, "aliases": dict,
+                     "units": dict, "master": dict, "metrics": dict, "stand_ins": list, "transformed": list}
+_JSON_NAME = {str: "string", dict: "object", list: "array"}
+
 _PREFIX_OF = {uri: prefix for prefix, uri in NS.items()}
 _IGNORED = {"ElementGeometry", "ConnectorGeometry", "ConnectionGeometry", "GraphicalElements", "Units",
             "Enumerations", "Annotations"}
@@ -178,6 +185,12 @@ class _SystemReader:
         if not (isinstance(own_blocks, dict) and all(isinstance(t, dict) for t in own_blocks.values())):
             self.refuse(f"ssc:Annotation '{FEATHERSTAR_ANNOTATION}': 'blocks' must map block names to tables")
             own_blocks = {}
+        for name, table in list(own_blocks.items()):
+            if table.get("kind") not in DATA_KINDS:   # a package is data: it never names code to run
+                self.refuse(f"block '{name}' of the {FEATHERSTAR_ANNOTATION} annotation has kind "
+                            f"{table.get('kind')!r:.40}: a package may hold only {', '.join(DATA_KINDS)} blocks "
+                            "(FMUs are components; a python block names code, add it to a scene yourself)")
+                del own_blocks[name]
         # components that stand in for featherstar blocks (a stroke's FMU, for other tools):
         # featherstar runs the blocks themselves
         stand_ins = self._names(extra.pop("stand_ins", []), "stand_ins")
@@ -230,7 +243,16 @@ class _SystemReader:
             if not isinstance(extra, dict):
                 self.refuse(f"ssc:Annotation '{FEATHERSTAR_ANNOTATION}' must hold an fs:Scene JSON object")
                 return {}, {}
-            return extra, dict(extra.pop("overrides", {}))
+            for key, kind in _ANNOTATION_TYPES.items():
+                if key in extra and not isinstance(extra[key], kind):
+                    self.refuse(f"ssc:Annotation '{FEATHERSTAR_ANNOTATION}': '{key}' must be a JSON "
+                                f"{_JSON_NAME[kind]}, not {extra.pop(key)!r:.80}")
+            overrides = extra.pop("overrides", {})
+            bad = [k for k, v in overrides.items() if not isinstance(v, (str, int, float, bool))]
+            if bad:
+                self.refuse(f"ssc:Annotation '{FEATHERSTAR_ANNOTATION}': override(s) {', '.join(bad)[:80]} must be "
+                            "numbers, strings or booleans")
+            return extra, {k: v for k, v in overrides.items() if k not in bad}
         return {}, {}
 
     def _connectors(self, connectors: ET.Element, label: str) -> dict[str, str]:

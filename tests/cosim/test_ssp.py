@@ -3,6 +3,8 @@ FMI 3.0 and on FMI 2.0 FMUs); a hand-written package with system-level .ssv bind
 outputs runs; what featherstar cannot map is refused naming the element."""
 from __future__ import annotations
 
+import html
+import json
 import re
 import xml.etree.ElementTree as ET
 import zipfile
@@ -10,9 +12,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 from conftest import OSCILLATOR, make_scene
 from featherstar.cosim.errors import SceneError
+from featherstar.cosim.scene.graph import plan
 from featherstar.cosim.scenes import load_scene
+from featherstar.fmu_src.errors import ModelError
 from featherstar.cosim.ssp.export import export_ssp
 from featherstar.cosim.ssp.read import NS, SSD_NAME
 from featherstar.cosim.swimmer.run import run_scene
@@ -331,13 +337,16 @@ def mutated(mixed_ssp: Path, tmp_path: Path, old: str, new: str, count: int = 1)
     ('"stand_ins": [\n  "source"\n ]', '"stand_ins": [\n  "nobody"\n ]',
      "stand-in 'nobody' is no ssd:Component of the system"),
     ('"stand_ins": [\n  "source"\n ]', '"stand_ins": 5',
-     "ssc:Annotation 'org.featherstar.scene': 'stand_ins' must be a list of strings, not 5"),
+     "ssc:Annotation 'org.featherstar.scene': 'stand_ins' must be a JSON array, not 5"),
     ('"blocks": {', '"blocks": {"x": 3, ',
      "ssc:Annotation 'org.featherstar.scene': 'blocks' must map block names to tables"),
     ('"connections": [', '"connections": 7, "unused": [',
-     "ssc:Annotation 'org.featherstar.scene': 'connections' must be a list of strings, not 7"),
-    ('"transformed": []', '"transformed": {"a": 1}',
-     "ssc:Annotation 'org.featherstar.scene': 'transformed' must be a list of strings"),
+     "ssc:Annotation 'org.featherstar.scene': 'connections' must be a JSON array, not 7"),
+    ('"kind": "gain"', '"kind": "python", "factory": "os:system"',
+     "block 'scale' of the org.featherstar.scene annotation has kind 'python': a package may hold only stroke, "
+     "constant, gain, recorder blocks"),
+    ('"transformed": []', '"transformed": [1]',
+     "ssc:Annotation 'org.featherstar.scene': 'transformed' must be a list of strings, not [1]"),
     ("<ssd:Elements>", "<ssd:SignalDictionaries/><ssd:Elements>",
      "ssd:SignalDictionaries in ssd:System 'oscillator': featherstar cannot map it"),
 ])
@@ -345,6 +354,33 @@ def test_malformed_package_is_refused_naming_the_element(mixed_ssp, tmp_path, ol
     with pytest.raises(SceneError) as refused:
         load_scene(mutated(mixed_ssp, tmp_path, old, new))
     assert message in str(refused.value)
+
+
+JSON = st.recursive(st.none() | st.booleans() | st.integers(-3, 3) | st.floats(allow_nan=False) | st.text(max_size=4),
+                    lambda inner: st.lists(inner, max_size=3) | st.dictionaries(st.text(max_size=4), inner, max_size=3),
+                    max_leaves=6)
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(key=st.sampled_from(["blocks", "connections", "overrides", "aliases", "master", "metrics", "stand_ins",
+                            "transformed", "units", "description"]), value=JSON)
+def test_any_annotation_content_is_refused_or_read_never_a_crash(mixed_ssp, tmp_path_factory, key, value):
+    """The annotation is data from elsewhere: whatever JSON stands under any of its keys, reading
+    and planning the package give a plan or a SceneError (ModelError for a model's values)."""
+    ssd = zipfile.ZipFile(mixed_ssp).read(SSD_NAME).decode()
+    start = ssd.index('<fs:Scene format="json">') + len('<fs:Scene format="json">')
+    end = ssd.index("</fs:Scene>")
+    annotation = json.loads(html.unescape(ssd[start:end]))
+    annotation[key] = value
+    text = html.escape(json.dumps(annotation), quote=False)
+    folder = tmp_path_factory.mktemp("fuzz")
+    package = write_package(folder / "fuzz.ssp", ssd[:start] + text + ssd[end:], mixed_ssp)
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv("FEATHERSTAR_CACHE", str(folder / "cache"))   # unpacked here, not in the user's cache
+        try:
+            plan(load_scene(package))
+        except (SceneError, ModelError):
+            pass
 
 
 def test_broken_archives_are_refused(mixed_ssp, tmp_path):
