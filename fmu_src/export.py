@@ -31,6 +31,7 @@ import fmpy
 from .errors import BuildError
 from .model import Model
 from .shell_tables import variable_tables
+from .si_units import base_unit
 
 SHELL_DIR = Path(__file__).parent / "c"
 SHELL_HEADER = "fmi3_shell.h"
@@ -97,16 +98,6 @@ const fs_model* fs_model_info(void) {
 }
 """
 
-# Base-unit exponents of the symbols models use; a unit built from others gets no <BaseUnit>.
-_SI: dict[str, dict[str, int]] = {
-    "m": {"m": 1}, "kg": {"kg": 1}, "s": {"s": 1}, "A": {"A": 1}, "K": {"K": 1},
-    "mol": {"mol": 1}, "cd": {"cd": 1}, "rad": {"rad": 1}, "Hz": {"s": -1},
-    "N": {"kg": 1, "m": 1, "s": -2}, "Pa": {"kg": 1, "m": -1, "s": -2},
-    "J": {"kg": 1, "m": 2, "s": -2}, "W": {"kg": 1, "m": 2, "s": -3},
-    "V": {"kg": 1, "m": 2, "s": -3, "A": -1},
-}
-
-
 def cache_dir() -> Path:
     """Where built FMUs are kept: $FEATHERSTAR_CACHE, else ~/.cache/featherstar/fmus."""
     root = os.environ.get("FEATHERSTAR_CACHE")
@@ -146,7 +137,7 @@ def _cache_key(model: Model, shell: dict[str, bytes], fmi_version: int) -> str:
     digest = hashlib.sha256(f"{ca.__version__} {PLATFORM} {CFLAGS} FMI{fmi_version}".encode())
     for name, source in sorted(shell.items()):
         digest.update(name.encode() + source)
-    for module in ("export.py", "shell_tables.py", *(("fmi2_description.py",) if fmi_version == 2 else ())):
+    for module in ("export.py", "shell_tables.py", "si_units.py", *(("fmi2_description.py",) if fmi_version == 2 else ())):
         digest.update((Path(__file__).parent / module).read_bytes())
     # The fingerprint covers equations and variable metadata but not the model's own text.
     digest.update(f"{model.name}\0{model.description}".encode())
@@ -341,7 +332,7 @@ def _patch_model_description(text: str, model: Model, identifier: str) -> str:
     unit_defs = ET.Element("UnitDefinitions")
     for unit in sorted(set(units.values())):
         element = ET.SubElement(unit_defs, "Unit", name=unit)
-        base = _base_unit(unit)
+        base = base_unit(unit)
         if base is not None:
             ET.SubElement(element, "BaseUnit", {k: str(v) for k, v in base.items()})
     log_categories = ET.Element("LogCategories")
@@ -419,19 +410,3 @@ def _per_second(unit: str) -> str:
         factors.append("s")
     joined = ".".join(factors)
     return f"{numerator}/{joined}" if len(factors) == 1 else f"{numerator}/({joined})"
-
-
-def _base_unit(unit: str) -> dict[str, int] | None:
-    """SI base exponents of e.g. "N.m/(rad.s)"; None when a symbol is not in _SI."""
-    exponents: dict[str, int] = {}
-    numerator, _, denominator = unit.partition("/")
-    for sign, part in ((1, numerator), (-1, denominator.strip("()"))):
-        if part in ("", "1"):
-            continue
-        for factor in part.split("."):
-            match = re.fullmatch(r"([A-Za-z]+)(-?\d+)?", factor)
-            if not match or match[1] not in _SI:
-                return None
-            for base, exponent in _SI[match[1]].items():
-                exponents[base] = exponents.get(base, 0) + sign * exponent * int(match[2] or 1)
-    return {base: e for base, e in exponents.items() if e}

@@ -2,7 +2,8 @@
 
 The package is a zip holding SystemStructure.ssd and, under resources/, one FMU per FMU block:
 a model block's FMU is built (FMI 3.0, or 2.0 for older importers), an FMU file is copied. In
-SystemStructure.ssd every FMU block is an ssd:Component with its ports as connectors and the
+SystemStructure.ssd every FMU block is an ssd:Component with its ports as connectors (with their
+units, defined in ssd:Units by SI base units; none on a waived connection's ends) and the
 parameter values the run would use as an inline ssv:ParameterSet; connections between FMU
 blocks are ssd:Connections.
 
@@ -35,11 +36,13 @@ from pathlib import Path
 from typing import Any, Callable, Mapping
 
 from ...fmu_src.model import Model
+from ...fmu_src.si_units import base_unit
 from ..errors import SceneError
-from ..scene.blocks import ResolvedBlock
+from ..scene.blocks import Gain, ResolvedBlock
 from ..scene.data import MasterSpec, MetricsSpec, Scene
 from ..scene.graph import plan as make_plan
 from ..scene.plan import Plan
+from ..scene.specs import PortRef
 from .read import FEATHERSTAR_ANNOTATION, FMU_TYPE, NS, SSD_NAME
 
 #: Every component's parameter set has this name: Ecos applies the sets of one name, chosen at
@@ -106,7 +109,10 @@ def _stand_ins(scene: Scene, plan: Plan, fmu_blocks: set[str]) -> dict[str, tupl
     an FMU of themselves."""
     from ...fmu_src.catalog import build_model
 
-    drives_fmu = {c.src.block for c in scene.connections if c.dst.block in fmu_blocks}
+    # a gain that feeds FMUs only is a transformed connection: what drives it drives those FMUs
+    feeds_fmus = {name for name in scene.block_names if isinstance(plan.blocks[name].obj, Gain)
+                  and _drives_only(scene, name, fmu_blocks)}
+    drives_fmu = {c.src.block for c in scene.connections if c.dst.block in fmu_blocks | feeds_fmus}
     out = {}
     for name in scene.block_names:
         offer = getattr(plan.blocks[name].obj, "fmu_stand_in", None)
@@ -115,6 +121,25 @@ def _stand_ins(scene: Scene, plan: Plan, fmu_blocks: set[str]) -> dict[str, tupl
             kind, options, values = stand_in
             out[name] = (build_model(kind, options), dict(values))
     return out
+
+
+def _linear_gains(scene: Scene, plan: Plan, in_ssp: set[str]) -> dict[str, tuple[PortRef, list[PortRef]]]:
+    """{gain: (its driver, the inputs it drives)} of the gain blocks between components only:
+    each is an ssc:LinearTransformation on a connection of those components."""
+    out = {}
+    for name in scene.block_names:
+        if not isinstance(plan.blocks[name].obj, Gain):
+            continue
+        into = [c.src for c in scene.connections if c.dst.block == name]
+        if into and into[0].block in in_ssp and _drives_only(scene, name, in_ssp):
+            out[name] = (into[0], [c.dst for c in scene.connections if c.src.block == name])
+    return out
+
+
+def _drives_only(scene: Scene, block: str, targets: set[str]) -> bool:
+    """Does `block` drive something, and only blocks in `targets`?"""
+    driven = {c.dst.block for c in scene.connections if c.src.block == block}
+    return bool(driven) and driven <= targets
 
 
 def _fmu_file(rb: ResolvedBlock, work: Path, fmi_version: int) -> str:
@@ -154,9 +179,18 @@ def _system_structure(scene: Scene, plan: Plan, sources: dict[str, str],
     system_connectors: list[tuple[str, str]] = []  # (name, kind)
     ssd_connections: list[dict[str, str]] = []
     featherstar_connections: list[str] = []
+    gains = _linear_gains(scene, plan, in_ssp)
+    transformed: dict[str, tuple[float, float]] = {}   # "src -> dst" between components -> (factor, offset)
+    for name, (src, dsts) in gains.items():
+        for dst in dsts:
+            transformed[f"{src} -> {dst}"] = (blocks[name].obj.gain, blocks[name].obj.offset)
+            ssd_connections.append({"startElement": src.block, "startConnector": src.port,
+                                    "endElement": dst.block, "endConnector": dst.port})
     for connection in scene.connections:
         src, dst = connection.src, connection.dst
-        if src.block in in_ssp and dst.block in in_ssp:
+        if src.block in gains or dst.block in gains:   # written as a transformed connection above
+            featherstar_connections.append(str(connection))
+        elif src.block in in_ssp and dst.block in in_ssp:
             ssd_connections.append({"startElement": src.block, "startConnector": src.port,
                                     "endElement": dst.block, "endConnector": dst.port})
         elif dst.block in in_ssp:  # a featherstar block drives an FMU input
@@ -178,37 +212,61 @@ def _system_structure(scene: Scene, plan: Plan, sources: dict[str, str],
             ET.SubElement(connector, _q("ssc", "Real"))
 
     elements = ET.SubElement(system, _q("ssd", "Elements"))
+    # a waived connection joins ports whose units differ on purpose, and a gain may change the
+    # unit (deg -> rad): SSP tools would convert there
+    unitless = {(ref.block, ref.port) for c in scene.unit_waivers for ref in (c.src, c.dst)}
+    unitless |= {(ref.block, ref.port) for src, dsts in gains.values() for ref in (src, *dsts)}
+    units: set[str] = set()
     for name, source in sources.items():
-        _component(elements, blocks[name], source, stand_ins.get(name))
+        units |= _component(elements, blocks[name], source, stand_ins.get(name), unitless)
     if ssd_connections:
         connections = ET.SubElement(system, _q("ssd", "Connections"))
         for attributes in ssd_connections:
-            ET.SubElement(connections, _q("ssd", "Connection"), attributes)
+            connection = ET.SubElement(connections, _q("ssd", "Connection"), attributes)
+            key = f"{attributes.get('startElement')}.{attributes['startConnector']} -> " \
+                  f"{attributes.get('endElement')}.{attributes['endConnector']}"
+            if key in transformed:
+                factor, offset = transformed[key]
+                ET.SubElement(connection, _q("ssc", "LinearTransformation"),
+                              {"factor": _number(factor), "offset": _number(offset)})
 
     annotations = ET.SubElement(system, _q("ssd", "Annotations"))
     annotation = ET.SubElement(annotations, _q("ssc", "Annotation"), {"type": FEATHERSTAR_ANNOTATION})
     ET.SubElement(annotation, _q("fs", "Scene"), {"format": "json"}).text = json.dumps(
-        _featherstar_part(scene, set(sources) - set(stand_ins), featherstar_connections, sorted(stand_ins)),
+        _featherstar_part(scene, set(sources) - set(stand_ins), featherstar_connections, sorted(stand_ins),
+                          sorted(transformed)),
         indent=1, sort_keys=True)
+    if units:
+        definitions = ET.SubElement(root, _q("ssd", "Units"))
+        for unit in sorted(units):
+            ET.SubElement(ET.SubElement(definitions, _q("ssc", "Unit"), {"name": unit}), _q("ssc", "BaseUnit"),
+                          {k: str(v) for k, v in (base_unit(unit) or {}).items()})
     # the run's length, also when given in stroke periods (the annotation keeps `periods`)
     ET.SubElement(root, _q("ssd", "DefaultExperiment"), {"startTime": "0.0", "stopTime": _number(plan.t_end_s)})
     ET.indent(root, space="  ")
     return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode")
 
 
-def _component(elements: ET.Element, rb: ResolvedBlock, source: str, stand_in: dict[str, float] | None) -> None:
+def _component(elements: ET.Element, rb: ResolvedBlock, source: str, stand_in: dict[str, float] | None,
+               unitless: set[tuple[str, str]]) -> set[str]:
+    """Write the component; returns the units its connectors declare (those with SI base units)."""
     component = ET.SubElement(elements, _q("ssd", "Component"),
                               {"name": rb.name, "type": FMU_TYPE, "source": source})
     if rb.spec.description:
         component.set("description", rb.spec.description)
     connectors = ET.SubElement(component, _q("ssd", "Connectors"))
     values = _parameter_values(rb) if stand_in is None else stand_in
+    units = set()
     for kind, ports in (("input", rb.inputs), ("output", rb.outputs), ("parameter", dict.fromkeys(values))):
         for port in ports:
             connector = ET.SubElement(connectors, _q("ssd", "Connector"), {"name": port, "kind": kind})
-            ET.SubElement(connector, _q("ssc", "Real"))
+            real = ET.SubElement(connector, _q("ssc", "Real"))
+            unit = getattr(ports[port], "unit", "").strip() if kind != "parameter" else ""
+            if unit and (rb.name, port) not in unitless and base_unit(unit) is not None:
+                real.set("unit", unit)
+                units.add(unit)
     if not values:
-        return
+        return units
     bindings = ET.SubElement(component, _q("ssd", "ParameterBindings"))
     binding = ET.SubElement(bindings, _q("ssd", "ParameterBinding"))
     holder = ET.SubElement(binding, _q("ssd", "ParameterValues"))
@@ -217,11 +275,13 @@ def _component(elements: ET.Element, rb: ResolvedBlock, source: str, stand_in: d
     for name, value in values.items():
         parameter = ET.SubElement(parameters, _q("ssv", "Parameter"), {"name": name})
         ET.SubElement(parameter, _q("ssv", "Real"), {"value": _number(value)})
+    return units
 
 
-def _featherstar_part(scene: Scene, in_ssp: set[str], connections: list[str], stand_ins: list[str]) -> dict[str, Any]:
+def _featherstar_part(scene: Scene, in_ssp: set[str], connections: list[str], stand_ins: list[str],
+                      transformed: list[str]) -> dict[str, Any]:
     """What only featherstar reads back: its own blocks (and which components stand in for some
-    of them), their connections, master and metrics."""
+    of them, which ssd:Connections are gains), their connections, master and metrics."""
     blocks = {}
     for block in scene.blocks:
         if block.name in in_ssp:
@@ -244,6 +304,7 @@ def _featherstar_part(scene: Scene, in_ssp: set[str], connections: list[str], st
         "description": scene.description,
         "blocks": blocks,
         "stand_ins": stand_ins,
+        "transformed": transformed,
         "connections": connections,
         "overrides": overrides,
         "aliases": scene.aliases.to_plain(),

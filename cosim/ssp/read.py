@@ -12,7 +12,9 @@ blocks SSP has no component type for, the master and metrics settings; system co
 
 A connection between two components with an ssc:LinearTransformation (y = factor x + offset)
 becomes a `gain` block between them (named `transform_<n>`, its ports without units, so the plan
-notes the connection as not unit-checked).
+notes the connection as not unit-checked), unless featherstar's annotation says the
+transformation is one of its own gain blocks (`transformed`), which the annotation wires.
+Components the annotation lists as `stand_ins` (a stroke's FMU) are replaced by its blocks.
 
 What featherstar cannot map is refused, naming the element: nested systems, signal
 dictionaries, non-FMU components, parameter mappings, other connection transformations
@@ -53,9 +55,15 @@ FEATHERSTAR_ANNOTATION = "org.featherstar.scene"
 #: The recorder that records the system's outputs (connectors of kind output fed by components).
 OUTPUTS_RECORDER = "system_outputs"
 
-#: The shape of each part of the featherstar annotation that the reader or the scene reads as a whole.
-_ANNOTATION_SHAPES: dict[str, type] = {"blocks": dict, "connections": list, "overrides": dict, "master": dict,
-                                       "metrics": dict, "aliases": dict}
+#: The block kinds the annotation may hold: FMUs are the package's components, never an FMU file
+#: elsewhere; a python block's code reference is judged by featherstar.cosim.ssp.code_refs
+#: (featherstar's own blocks, or anything with --allow-code).
+ANNOTATION_KINDS = ("stroke", "constant", "gain", "recorder", "python")
+#: What each key of featherstar's annotation holds (a package is data: anything else is refused).
+_ANNOTATION_TYPES = {"description": str, "blocks": dict, "connections": list, "overrides": dict, "aliases": dict,
+                     "units": dict, "master": dict, "metrics": dict, "stand_ins": list, "transformed": list}
+_JSON_NAME = {str: "string", dict: "object", list: "array"}
+
 _PREFIX_OF = {uri: prefix for prefix, uri in NS.items()}
 _IGNORED = {"ElementGeometry", "ConnectorGeometry", "ConnectionGeometry", "GraphicalElements", "Units",
             "Enumerations", "Annotations"}
@@ -154,6 +162,7 @@ class _SystemReader:
         self.problems: list[str] = []
         self.annotation: Any = None  # the featherstar annotation as written (JSON), judged whole
         self.units: dict[tuple[str | None, str], str] = {}   # (element or None, connector) -> declared unit
+        self.transformed: set[str] = set()
 
     def refuse(self, message: str) -> None:
         self.problems.append(message)
@@ -228,9 +237,20 @@ class _SystemReader:
                 blocks[component]["parameters"] = values
         annotated = bool(extra)
         own_blocks = extra.pop("blocks", {})
+        if not (isinstance(own_blocks, dict) and all(isinstance(t, dict) for t in own_blocks.values())):
+            self.refuse(f"ssc:Annotation '{FEATHERSTAR_ANNOTATION}': 'blocks' must map block names to tables")
+            own_blocks = {}
+        for name, table in list(own_blocks.items()):
+            if table.get("kind") not in ANNOTATION_KINDS:   # a package's FMUs are its components
+                self.refuse(f"block '{name}' of the {FEATHERSTAR_ANNOTATION} annotation has kind "
+                            f"{table.get('kind')!r:.40}: its blocks may be {', '.join(ANNOTATION_KINDS)} "
+                            "(an FMU is an ssd:Component of the package, never a file elsewhere)")
+                del own_blocks[name]
         # components that stand in for featherstar blocks (a stroke's FMU, for other tools):
         # featherstar runs the blocks themselves
-        stand_ins = set(extra.pop("stand_ins", []))
+        stand_ins = self._names(extra.pop("stand_ins", []), "stand_ins")
+        # connections whose ssc:LinearTransformation is a gain block of the annotation (wired there)
+        self.transformed = self._names(extra.pop("transformed", []), "transformed")
         for name in own_blocks:
             if name in blocks and name not in stand_ins:
                 self.refuse(f"block '{name}' of the {FEATHERSTAR_ANNOTATION} annotation has the name of an ssd:Component")
@@ -238,7 +258,8 @@ class _SystemReader:
             self.refuse(f"the {FEATHERSTAR_ANNOTATION} annotation's stand-in '{name}' is no ssd:Component of the "
                         "system with a block of that name in the annotation")
         blocks.update(own_blocks)
-        connections = list(extra.pop("connections", []))
+        raw_connections = extra.pop("connections", [])
+        connections = list(raw_connections) if self._names(raw_connections, "connections") else []
         outputs = []
         for connection in system.iterfind(f"{_q('ssd', 'Connections')}/{_q('ssd', 'Connection')}"):
             mapped = self._connection(connection, blocks, own_blocks, connectors)
@@ -256,6 +277,12 @@ class _SystemReader:
         data["connections"] = connections
         return data, overrides
 
+    def _names(self, value: Any, key: str) -> set[str]:
+        if isinstance(value, list) and all(isinstance(v, str) for v in value):
+            return set(value)
+        self.refuse(f"ssc:Annotation '{FEATHERSTAR_ANNOTATION}': '{key}' must be a list of strings, not {value!r:.80}")
+        return set()
+
     def _annotation(self, annotations: ET.Element | None) -> tuple[dict[str, Any], dict[str, Any]]:
         if annotations is None:
             return {}, {}
@@ -272,10 +299,13 @@ class _SystemReader:
             if not isinstance(extra, dict):
                 self.refuse(f"ssc:Annotation '{FEATHERSTAR_ANNOTATION}' must hold an fs:Scene JSON object")
                 return {}, {}
-            wrong = [f"'{key}' must be a JSON {shape.__name__.replace('dict', 'object').replace('list', 'array')}"
-                     for key, shape in _ANNOTATION_SHAPES.items() if not isinstance(extra.get(key, shape()), shape)]
+            wrong = [f"'{key}' must be a JSON {_JSON_NAME[kind]}" for key, kind in _ANNOTATION_TYPES.items()
+                     if key in extra and not isinstance(extra[key], kind)]
             blocks = extra.get("blocks") if isinstance(extra.get("blocks"), dict) else {}
             wrong += [f"block '{name}' must be a JSON object" for name, block in blocks.items() if not isinstance(block, dict)]
+            overrides = extra.get("overrides") if isinstance(extra.get("overrides"), dict) else {}
+            wrong += [f"override '{key}' must be a number, a string or a boolean" for key, value in overrides.items()
+                      if not isinstance(value, (str, int, float, bool))]
             if wrong:
                 self.refuse(f"ssc:Annotation '{FEATHERSTAR_ANNOTATION}': {'; '.join(wrong)}")
                 return {}, {}
@@ -327,7 +357,7 @@ class _SystemReader:
             elif local == "ssd:Connectors":
                 for connector in child.iterfind(_q("ssd", "Connector")):
                     self._note_unit(name, connector)
-            elif local != "ssd:Connectors" and local.split(":")[-1] not in _IGNORED:
+            elif local.split(":")[-1] not in _IGNORED:
                 self.refuse(f"{local} in {label}: featherstar cannot map it")
         blocks[name] = block
 
@@ -425,6 +455,8 @@ class _SystemReader:
         if all(units) and units[0] != units[1]:
             self.refuse(f"{label}: its connectors' units differ ('{units[0]}' -> '{units[1]}'); SSP tools convert "
                         "between them, featherstar converts no unit (give both connectors the same unit)")
+            return None
+        if linear is not None and f"{start[0]}.{start[1]} -> {end[0]}.{end[1]}" in self.transformed:
             return None
         if linear is not None:
             return self._transformed(linear, f"{start[0]}.{start[1]}", f"{end[0]}.{end[1]}", blocks, label)

@@ -3,6 +3,8 @@ FMI 3.0 and on FMI 2.0 FMUs); a hand-written package with system-level .ssv bind
 outputs runs; what featherstar cannot map is refused naming the element."""
 from __future__ import annotations
 
+import html
+import json
 import re
 import xml.etree.ElementTree as ET
 import zipfile
@@ -10,9 +12,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 from conftest import OSCILLATOR, make_scene
 from featherstar.cosim.errors import SceneError
+from featherstar.cosim.scene.graph import plan
 from featherstar.cosim.scenes import load_scene
+from featherstar.fmu_src.errors import ModelError
 from featherstar.cosim.ssp.export import export_ssp
 from featherstar.cosim.ssp.read import NS, SSD_NAME
 from featherstar.cosim.swimmer.run import run_scene
@@ -107,6 +113,9 @@ def test_testbed_round_trip_on_fmi3_and_fmi2(tmp_path):
                 'endConnector="controller.angle_rad" />' in ssd) == system_outputs
         assert all(f'<ssd:Component name="{n}"' in ssd for n in ("controller", "tank", "servo", "feather"))
         assert scene.master.periods == 1 and scene.master.t_end_s == 0.0
+        # connector units, defined by their SI base units
+        assert ssd.count('<ssc:Real unit="N.m" />') == 2   # the feather's torque and the servo's load
+        assert re.search(r'<ssc:Unit name="N.m">\s*<ssc:BaseUnit kg="1" m="2" s="-2" />', ssd)
         assert_same_scene(scene, load_scene("testbed").with_overrides(short))
         back = run_scene(package)
         if fmi_version == 3:
@@ -116,6 +125,22 @@ def test_testbed_round_trip_on_fmi3_and_fmi2(tmp_path):
             for name in direct.signals:
                 assert np.max(np.abs(direct[name] - back[name])) <= 1e-10, name
         assert back.summary["thrust_ratio"] == direct.summary["thrust_ratio"]
+
+
+def test_a_waived_connection_is_exported_without_units_and_reads_back_waived(tmp_path):
+    """The waiver says the numbers agree although the units differ: its two connectors carry no
+    unit, else an SSP tool would convert; the waiver itself travels in the annotation."""
+    blocks = {**MIXED["blocks"], "source": {"kind": "constant", "outputs": {"u": {"value": 1.0, "unit": "m"}}}}
+    scene = make_scene(OSCILLATOR, **dict(MIXED, blocks=blocks, units={"waive": ["source.u -> g.u"]}))
+    package = export_ssp(scene, tmp_path / "waived.ssp", OVERRIDES)
+    root = ET.fromstring(zipfile.ZipFile(package).read(SSD_NAME))
+    declared = {(c.get("name"), k.get("name")): k[0].get("unit")
+                for c in root.iterfind(".//ssd:Component", NS) for k in c.iterfind("ssd:Connectors/ssd:Connector", NS)}
+    assert declared[("source", "u")] is None and declared[("g", "u")] is None
+    assert declared[("a", "position_m")] == "m" and declared[("b", "force_N")] == "N"
+    back = load_scene(package)
+    assert [str(c) for c in back.unit_waivers] == ["source.u -> g.u"]
+    assert_identical(run_scene(package), run_scene(scene, OVERRIDES))
 
 
 FOREIGN_SSD = """<?xml version="1.0" encoding="UTF-8"?>
@@ -237,6 +262,24 @@ def test_a_linear_transformation_between_components_is_a_gain_block(mixed_ssp, t
                for note in back.info["notes"])
 
 
+def test_a_gain_between_components_is_exported_as_a_linear_transformation(tmp_path):
+    """Other tools see a.position_m -> b.other_position_m with y = 0.5 x + 0.01 (no system
+    connector, so the package stays FMUs only); featherstar reads back its gain block."""
+    by_hand = dict(MIXED, connections=[c for c in MIXED["connections"] if c != "a.position_m -> b.other_position_m"]
+                   + ["a.position_m -> half.u", "half.y -> b.other_position_m"],
+                   blocks={**MIXED["blocks"], "half": {"kind": "gain", "gain": 0.5, "offset": 0.01,
+                                                       "unit_in": "m", "unit_out": "m"}})
+    scene = make_scene(OSCILLATOR, **by_hand)
+    package = export_ssp(scene, tmp_path / "gain.ssp", OVERRIDES)
+    ssd = zipfile.ZipFile(package).read(SSD_NAME).decode()
+    assert re.search(r'<ssd:Connection startElement="a" startConnector="position_m" endElement="b" '
+                     r'endConnector="other_position_m">\s*<ssc:LinearTransformation factor="0.5" offset="0.01" />', ssd)
+    assert "half.u" not in ssd.split("<ssd:Annotations>")[0]
+    back = load_scene(package)
+    assert_same_scene(back, scene.with_overrides(OVERRIDES))
+    assert_identical(run_scene(package), run_scene(scene, OVERRIDES))
+
+
 def test_connectors_with_different_units_are_refused_and_equal_ones_accepted(mixed_ssp, tmp_path):
     same = _with_connector_units(mixed_ssp, tmp_path / "same.ssp", {("a", "position_m"): "m", ("b", "other_position_m"): "m"})
     load_scene(same)
@@ -293,6 +336,17 @@ def mutated(mixed_ssp: Path, tmp_path: Path, old: str, new: str, count: int = 1)
      "ssd:DefaultExperiment startTime = 1.0: featherstar runs start at t = 0"),
     ('"stand_ins": [\n  "source"\n ]', '"stand_ins": [\n  "nobody"\n ]',
      "stand-in 'nobody' is no ssd:Component of the system"),
+    ('"stand_ins": [\n  "source"\n ]', '"stand_ins": 5',
+     "ssc:Annotation 'org.featherstar.scene': 'stand_ins' must be a JSON array, not 5"),
+    ('"blocks": {', '"blocks": {"x": 3, ',
+     "ssc:Annotation 'org.featherstar.scene': 'blocks' must map block names to tables"),
+    ('"connections": [', '"connections": 7, "unused": [',
+     "ssc:Annotation 'org.featherstar.scene': 'connections' must be a JSON array, not 7"),
+    ('"kind": "gain"', '"kind": "python", "factory": "os:system"',
+     "block 'scale' of the org.featherstar.scene annotation has kind 'python': a package may hold only stroke, "
+     "constant, gain, recorder blocks"),
+    ('"transformed": []', '"transformed": [1]',
+     "ssc:Annotation 'org.featherstar.scene': 'transformed' must be a list of strings, not [1]"),
     ("<ssd:Elements>", "<ssd:SignalDictionaries/><ssd:Elements>",
      "ssd:SignalDictionaries in ssd:System 'oscillator': featherstar cannot map it"),
 ])
@@ -300,6 +354,33 @@ def test_malformed_package_is_refused_naming_the_element(mixed_ssp, tmp_path, ol
     with pytest.raises(SceneError) as refused:
         load_scene(mutated(mixed_ssp, tmp_path, old, new))
     assert message in str(refused.value)
+
+
+JSON = st.recursive(st.none() | st.booleans() | st.integers(-3, 3) | st.floats(allow_nan=False) | st.text(max_size=4),
+                    lambda inner: st.lists(inner, max_size=3) | st.dictionaries(st.text(max_size=4), inner, max_size=3),
+                    max_leaves=6)
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(key=st.sampled_from(["blocks", "connections", "overrides", "aliases", "master", "metrics", "stand_ins",
+                            "transformed", "units", "description"]), value=JSON)
+def test_any_annotation_content_is_refused_or_read_never_a_crash(mixed_ssp, tmp_path_factory, key, value):
+    """The annotation is data from elsewhere: whatever JSON stands under any of its keys, reading
+    and planning the package give a plan or a SceneError (ModelError for a model's values)."""
+    ssd = zipfile.ZipFile(mixed_ssp).read(SSD_NAME).decode()
+    start = ssd.index('<fs:Scene format="json">') + len('<fs:Scene format="json">')
+    end = ssd.index("</fs:Scene>")
+    annotation = json.loads(html.unescape(ssd[start:end]))
+    annotation[key] = value
+    text = html.escape(json.dumps(annotation), quote=False)
+    folder = tmp_path_factory.mktemp("fuzz")
+    package = write_package(folder / "fuzz.ssp", ssd[:start] + text + ssd[end:], mixed_ssp)
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv("FEATHERSTAR_CACHE", str(folder / "cache"))   # unpacked here, not in the user's cache
+        try:
+            plan(load_scene(package))
+        except (SceneError, ModelError):
+            pass
 
 
 def test_broken_archives_are_refused(mixed_ssp, tmp_path):
@@ -330,6 +411,11 @@ def test_cli_export_and_run(mixed_ssp, tmp_path, capsys):
     assert main(["run", str(package), "-q", "--no-figure", "--out", str(tmp_path / "run")]) == 0
     assert (tmp_path / "run" / "results.csv").is_file()
     capsys.readouterr()
+    with_outputs = tmp_path / "out" / "outputs.ssp"
+    assert main(["export-ssp", str(scene_file), "--out", str(with_outputs), "--system-outputs"]) == 0
+    assert '<ssd:Connector name="g.y" kind="output">' in zipfile.ZipFile(with_outputs).read(SSD_NAME).decode()
+    assert '<ssd:Connector name="g.y" kind="output">' not in zipfile.ZipFile(package).read(SSD_NAME).decode()
+    capsys.readouterr()
     assert main(["run", str(tmp_path / "nothing.ssp"), "-q"]) == 2
     assert f"SSP package '{tmp_path / 'nothing.ssp'}': no such file" in capsys.readouterr().err
     with pytest.raises(SystemExit):
@@ -352,7 +438,7 @@ kind = "gain"
 gain = -1.0
 [blocks.rec]
 kind = "recorder"
-signals = ["scale.y"]
+signals = ["scale.y", "g.y"]
 """
 
 

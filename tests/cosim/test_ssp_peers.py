@@ -91,20 +91,27 @@ def _export(tmp_path: Path, scene, overrides: dict, fmi_version: int, name: str)
 
 
 @pytest.mark.parametrize("fmi_version", [2, 3])
-def test_an_open_loop_scene_is_the_same_to_rounding_in_featherstar_ecos_and_libcosim(tmp_path, fmi_version):
-    """stroke -> servo <- constant load: the servo's outputs without direct feedthrough."""
+@pytest.mark.parametrize("through_gain", [False, True])
+def test_an_open_loop_scene_is_the_same_to_rounding_in_featherstar_ecos_and_libcosim(tmp_path, fmi_version,
+                                                                                    through_gain):
+    """stroke -> servo <- constant load: the servo's outputs without direct feedthrough; with a
+    gain between stroke and servo, which the package holds as an ssc:LinearTransformation."""
+    command = (["controller.angle_rad -> half.u", "half.y -> servo.setpoint_rad"] if through_gain
+               else ["controller.angle_rad -> servo.setpoint_rad"])
+    half = {"half": {"kind": "gain", "gain": 0.5, "offset": 0.1, "unit_in": "rad", "unit_out": "rad"}}
     scene = scene_from_dict({
-        "name": "openloop", "connections": ["controller.angle_rad -> servo.setpoint_rad",
-                                             "load.torque_Nm -> servo.load_torque_Nm"],
+        "name": "openloop", "connections": [*command, "load.torque_Nm -> servo.load_torque_Nm"],
         "master": {"coupling": "jacobi", "t_end_s": 0.5, "step_s": 1e-3},
         "blocks": {"controller": {"kind": "stroke"}, "servo": {"kind": "fmu", "model": "servo"},
                    "load": {"kind": "constant", "outputs": {"torque_Nm": {"value": 0.05, "unit": "N.m"}}},
-                   "rec": {"kind": "recorder", "signals": ["servo.angle_rad", "servo.rate_rad_s"]}},
+                   "rec": {"kind": "recorder", "signals": ["servo.angle_rad", "servo.rate_rad_s"]},
+                   **(half if through_gain else {})},
     })
     servo = make_plan(scene).blocks["servo"].outputs
     signals = [s for s in ("servo.angle_rad", "servo.rate_rad_s") if not servo[s.split(".")[1]].depends_on]
     assert signals == ["servo.angle_rad", "servo.rate_rad_s"]
-    package = _export(tmp_path, scene, {}, fmi_version, "openloop")
+    package = _export(tmp_path, scene, {}, fmi_version, f"openloop-{through_gain}")
+    assert (b"LinearTransformation" in zipfile.ZipFile(package).read(SSD_NAME)) == through_gain
     ours = run_scene(package)
     n = len(ours.time) - 1
     assert n == 500

@@ -85,7 +85,8 @@ def test_shipped_fmu_declares_the_models_exact_starts(name):
 
 
 @pytest.mark.parametrize("name", ["servo", "robot", "feather-plain"])
-def test_built_fmi2_fmu_declares_the_models_exact_starts(name):
+def test_built_fmi2_fmu_declares_the_models_exact_starts(fmu_cache, name):
+    """In the session's cache, where test_fmus_fmi2.py builds the same FMUs."""
     model = MODELS[name]()
     _assert_exact(model, _xml(build_fmu(model, fmi_version=2)))
 
