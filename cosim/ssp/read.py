@@ -299,7 +299,7 @@ class _SystemReader:
             if not isinstance(extra, dict):
                 self.refuse(f"ssc:Annotation '{FEATHERSTAR_ANNOTATION}' must hold an fs:Scene JSON object")
                 return {}, {}
-            wrong = [f"'{key}' must be a JSON {_JSON_NAME[kind]}" for key, kind in _ANNOTATION_TYPES.items()
+            wrong = [f"'{key}' must be a JSON {_JSON_NAME[kind]}, not {extra[key]!r:.80}" for key, kind in _ANNOTATION_TYPES.items()
                      if key in extra and not isinstance(extra[key], kind)]
             blocks = extra.get("blocks") if isinstance(extra.get("blocks"), dict) else {}
             wrong += [f"block '{name}' must be a JSON object" for name, block in blocks.items() if not isinstance(block, dict)]
