@@ -135,9 +135,10 @@ def _plan_or_refusal(scene_source: Any, overrides: dict[str, str] | None = None)
     return None
 
 
-#: Refusals of what a value in range implies elsewhere (a stroke so slow the run would not fit in
-#: memory, a grid too coarse for it): they name the setting to change instead.
-CONSEQUENCES = ("memory is available", "leaves no whole period", "needs at least", "samples of master.")
+#: Refusals of what a valid value implies elsewhere (a stroke so slow the run would not fit in
+#: memory, a grid too coarse for it, an empty connection list): they name what to change instead.
+CONSEQUENCES = ("memory is available", "leaves no whole period", "needs at least", "samples of master.",
+                "is not connected (dangling)")
 
 
 def _assert_one_line_naming(exc: SceneError, *names: str) -> None:
