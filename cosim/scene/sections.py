@@ -19,11 +19,42 @@ METHODS = ("bdf", "adams", "adams-fixedpoint")
 
 @dataclass(frozen=True)
 class MasterSpec:
-    """How the master runs a scene (each key's meaning, range and unit: its `setting`).
+    """How the master runs a scene. Each key's type, range and unit: its `setting` below.
 
-    strong coupling integrates ME FMUs (and memoryless Python blocks) together as one ODE by
-    CVODE; jacobi / gauss-seidel step blocks as co-simulation units, inputs held (zero-order
-    hold) over each macro step, paced on the wall clock when `realtime` (hardware in the loop).
+    coupling           strong: ME FMUs (and memoryless Python blocks) integrated together as one
+                       ODE by CVODE; jacobi / gauss-seidel: blocks stepped as co-simulation
+                       units, inputs held (zero-order hold) over each macro step.
+    method             CVODE method for strong coupling and for ME-only FMUs in weak coupling:
+                       bdf (stiff) or adams (non-stiff).
+    rtol, atol         tolerances of every error-controlled integrator (CVODE here; passed to
+                       CS FMUs as their tolerance), and of the adaptive macro-step control.
+    step_s             weak coupling: the macro (communication) step; the initial one if adaptive.
+    max_step_s         strong coupling: largest solver step (0 = no limit).
+    adaptive           weak coupling: control the macro step from an error estimate, rejecting
+                       and rolling back steps whose estimate exceeds the tolerance.
+    macro_rtol         adaptive macro step: tolerated zero-order-hold error, relative to each
+                       coupled input's running magnitude (half its change over a step).
+    min_step_s, max_macro_step_s   bounds of the adaptive macro step.
+    t_end_s            run length; 0 = `periods` periods of the scene's stroke.
+    periods            run length in stroke periods when t_end_s = 0.
+    output_interval_s  recording grid (strong coupling; weak records every communication point).
+    dedup              integrate identical blocks driven by identical signals once.
+    loop_tol, loop_max_iter   algebraic-loop iteration (Newton with a finite-difference Jacobian).
+    algebraic_loops    iterate | error: whether algebraic loops may be solved by iteration.
+    backend            fmu: model blocks run as exported FMUs through fmpy; casadi: in-process
+                       (no export; for development and for FMU-free checks).
+    realtime           weak coupling: pace macro steps on the wall clock (hardware in the loop);
+                       steps that start late are counted as deadline misses.
+    check_steps        refuse a recording grid or fixed macro step too coarse for the stroke, and a
+                       macro step too long for a feedback loop (featherstar.cosim.scene.guards); false only to study
+                       the sampling or coupling error itself.
+    passive_energy_factor  stop when a passive block (a feather) gains more than this multiple of
+                       the work its ports put in (featherstar.cosim.scene.guards); 0 = no check.
+    compiled_rhs       strong coupling: run the right-hand side as compiled C calls
+                       (featherstar.cosim.coupling.compiled_rhs; needs gcc); false: the Python path.
+    start_at_rest      strong coupling: start from the state in which every continuous state's
+                       derivative is zero for the inputs at the start (a bench left alone:
+                       featherstar.cosim.coupling.rest), not from the models' start values.
     """
 
     coupling: str = setting("strong", "strong: one ODE by CVODE; jacobi / gauss-seidel: macro steps",
@@ -77,7 +108,15 @@ class MasterSpec:
 
 @dataclass(frozen=True)
 class MetricsSpec:
-    """Which signals the paper's metrics read (empty: metric not computed), and their window."""
+    """Which signals the paper's metrics read. Empty = metric not computed.
+
+    thrust          thrust signal (N) for mean thrust (Eq. 2) and thrust ratio TR (Eq. 3)
+    angle           root angle (rad), drawn with the thrust in the figure
+    speed           body speed (m/s) for the robot's mean speed
+    position        body position (m); mean speed = displacement / window when given
+    settle_periods  metrics use whole periods after this many periods of transient
+    period_s        metric period; 0 = the period of the scene's stroke controller
+    """
 
     thrust: str = setting("", "thrust signal (N): mean thrust (Eq. 2) and thrust ratio TR (Eq. 3)",
                           signal=True)
