@@ -250,6 +250,7 @@ def test_declared_schema_covers_every_key_and_lists_it():
     ({"metrics.thrust": "thrust"}, "metrics.thrust = 'thrust' must name a recorded signal as 'block.port'"),
     ({"loadcell.signals": "3"}, "loadcell.signals"),
     ({"feather.options": "3"}, "feather.options = 3 must be a table"),
+    ({"feathr.width_ratio": "5"}, "no block named 'feathr'; did you mean 'feather'?"),
 ])
 def test_out_of_range_and_misspelt_settings_say_what_is_expected(override, expected):
     exc = _plan_or_refusal("testbed", override)
