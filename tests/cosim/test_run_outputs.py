@@ -236,3 +236,20 @@ def test_the_command_runs_or_refuses_in_one_line(capsys, key_value):
         assert key.partition(".")[2] in line[0] or "incomplete" in line[0], line
     else:
         assert "thrust ratio TR" in captured.out
+
+
+@pytest.mark.parametrize("edit, names", [
+    (lambda text: text.replace(b'description = "Ideal', b'description = "\xff\xfeIdeal'), "not UTF-8 text (byte 0xff"),
+    (lambda text: b"master = 3\n" + text.replace(b"[master]", b"[unused_master]"), "[master] must be a table"),
+    (lambda text: text + b'\n[blocks.extra]\nkind = "gain"\ngain = [1, 2]\n', "extra.gain = [1, 2] must be a number"),
+    (lambda text: text.replace(b"connections = [", b"connections = {}\nold_connections = ["),
+     "connections = {} must be an array"),
+])
+def test_a_broken_scene_file_is_one_line_naming_file_and_key(tmp_path, capsys, edit, names):
+    from featherstar.cosim.scenes import shipped_scenes
+
+    file = tmp_path / "broken.toml"
+    file.write_bytes(edit(shipped_scenes()["kinematic"].read_bytes()))
+    assert main(["run", str(file), "-q", "--out", str(tmp_path / "out")]) == 2
+    line = _one_error_line(capsys)
+    assert str(file) in line and names in line
