@@ -70,9 +70,9 @@ class Scene:
         for b in self.blocks:
             if b.name == name:
                 return b
-        raise SceneError(
-            f"no block named '{name}'; the scene has: {', '.join(b.name for b in self.blocks)}", self.name
-        )
+        names = [b.name for b in self.blocks]
+        raise SceneError(f"no block named '{name}'{close_match(name, names)} (the scene has: {', '.join(names)})",
+                         self.name)
 
     @property
     def block_names(self) -> list[str]:

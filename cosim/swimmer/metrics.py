@@ -166,11 +166,14 @@ def scene_metrics(metrics_spec: Any, period: float | None, t: np.ndarray,
     checks: list[Precondition] = []
     if metrics_spec.thrust or metrics_spec.position or metrics_spec.speed:
         checks += window_preconditions(t, a, b, period, k, metrics_spec.settle_periods)
+    # per-period values only for periods the samples resolve (a period of 1e-9 s would be
+    # billions of empty ones)
+    resolved = all(c.holds for c in checks if c.name == "samples_per_period")
     if metrics_spec.thrust:
         thrust = signals[metrics_spec.thrust]
         checks.append(finite_precondition("thrust", t, thrust, a, b))
         with np.errstate(invalid="ignore", divide="ignore"):
-            out.update(thrust_metrics(t, thrust, a, b, period, k))
+            out.update(thrust_metrics(t, thrust, a, b, period, k if resolved else 0))
         checks += thrust_preconditions(out)
     if metrics_spec.position or metrics_spec.speed:
         name = metrics_spec.position or metrics_spec.speed
@@ -197,7 +200,7 @@ def judge_valid_periods(summary: dict[str, Any], t: np.ndarray, thrust: np.ndarr
     checks = summary.setdefault("preconditions", {})
     validity = summary.get("validity") or {}
     checks["valid_periods"] = "holds" if trusted else validity.get("reason", "the periods were not judged")
-    if not period or "window_s" not in summary:
+    if not period or "window_s" not in summary or checks.get("samples_per_period") != "holds":
         return
     a = float(summary["window_s"][0])
     excluded = {int(p["period"]) for p in validity.get("invalid_periods", [])}
@@ -205,5 +208,10 @@ def judge_valid_periods(summary: dict[str, Any], t: np.ndarray, thrust: np.ndarr
     bad = [finite_precondition("thrust", t, thrust, a + k * period, a + (k + 1) * period) for k in valid]
     bad = [c for c in bad if not c.holds]
     checks["finite_thrust"] = bad[0].reason if bad else "holds"
+    with np.errstate(invalid="ignore"):
+        neg = sum(thrust_metrics(t, thrust, a + k * period, a + (k + 1) * period, None, 0)["negative_impulse_Ns"]
+                  for k in valid)
+    negative = thrust_preconditions({"negative_impulse_Ns": neg})[0]
+    checks[negative.name] = negative.reason or "holds"
     final = finite_thrust_metrics(summary)   # TR and mean thrust over the valid periods
     checks[final.name] = final.reason or "holds"

@@ -23,15 +23,35 @@ def _parse_set(items: Sequence[str]) -> dict[str, str]:
 
 
 def _check_out_dir(out: Path) -> None:
-    """Refuse an --out that cannot be written before the run, not after it."""
+    """Refuse an --out that cannot be written before the run, not after it, and clear an earlier
+    run's outputs there: a run refused or failed from here on leaves no stale summary behind."""
     from .cosim.errors import SceneError
+    from .cosim.swimmer.report import clear_outputs
 
     try:
         out.mkdir(parents=True, exist_ok=True)
         with tempfile.NamedTemporaryFile(dir=out, prefix=".featherstar-write-test"):
             pass
+        clear_outputs(out)
     except OSError as exc:
         raise SceneError(f"--out {out}: cannot write there ({exc.strerror or exc})") from None
+
+
+def _write(result: object, out: Path, figure: bool) -> dict[str, Path]:
+    """The run's outputs; a figure that failed is a warning (the results are written)."""
+    from .cosim.errors import StepError
+    from .cosim.swimmer.report import write_outputs
+
+    try:
+        paths = write_outputs(result, out, figure=figure)
+    except OSError as exc:
+        raise StepError("master", 0.0, f"cannot write the results to --out {out} "
+                        f"({exc.strerror or exc})", cause="a full disk or a folder made read-only "
+                        "during the run") from None
+    for warning in getattr(result, "summary", {}).get("warnings", []):
+        if warning.startswith("figure not written"):
+            print(f"featherstar: warning: {warning}; the results are in {out}", file=sys.stderr)
+    return paths
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
@@ -66,7 +86,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 def _run_and_report(args: argparse.Namespace, scene, overrides, outputs, stop) -> int:
     from .cosim.errors import StepError
-    from .cosim.swimmer.report import summary_table, write_outputs
+    from .cosim.swimmer.report import summary_table
     from .cosim.swimmer.run import run_scene
 
     runner = run_scene
@@ -78,8 +98,11 @@ def _run_and_report(args: argparse.Namespace, scene, overrides, outputs, stop) -
     except StepError as exc:
         where = ""
         if exc.partial is not None and args.out:
-            paths = write_outputs(exc.partial, args.out, figure=not args.no_figure)
-            where = f"; partial results up to t={exc.t_s:.6g} s in {paths['results'].parent}"
+            try:
+                paths = _write(exc.partial, args.out, figure=not args.no_figure)
+                where = f"; partial results up to t={exc.t_s:.6g} s in {paths['results'].parent}"
+            except StepError as lost:
+                where = f"; partial results lost: {one_line(lost)}"
         elif exc.partial is not None:
             where = "; nothing kept (no --out)"
         unsafe = [name for name, ok in ((exc.partial.summary if exc.partial else {})
@@ -95,7 +118,7 @@ def _run_and_report(args: argparse.Namespace, scene, overrides, outputs, stop) -
     for note in result.info.get("notes", []):
         print(f"  note: {note}")
     if args.out:
-        paths = write_outputs(result, args.out, figure=not args.no_figure)
+        paths = _write(result, args.out, figure=not args.no_figure)
         print(f"wrote {', '.join(str(p) for p in paths.values())}")
     if not result.complete:
         print(f"featherstar: error: run incomplete: {result.summary.get('incomplete_reason')}"

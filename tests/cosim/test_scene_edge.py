@@ -135,9 +135,10 @@ def _plan_or_refusal(scene_source: Any, overrides: dict[str, str] | None = None)
     return None
 
 
-#: Refusals of what a value in range implies elsewhere (a stroke so slow the run would not fit in
-#: memory, a grid too coarse for it): they name the setting to change instead.
-CONSEQUENCES = ("memory is available", "leaves no whole period", "needs at least", "samples of master.")
+#: Refusals of what a valid value implies elsewhere (a stroke so slow the run would not fit in
+#: memory, a grid too coarse for it, an empty connection list): they name what to change instead.
+CONSEQUENCES = ("memory is available", "leaves no whole period", "needs at least", "samples of master.",
+                "is not connected (dangling)")
 
 
 def _assert_one_line_naming(exc: SceneError, *names: str) -> None:
@@ -249,6 +250,7 @@ def test_declared_schema_covers_every_key_and_lists_it():
     ({"metrics.thrust": "thrust"}, "metrics.thrust = 'thrust' must name a recorded signal as 'block.port'"),
     ({"loadcell.signals": "3"}, "loadcell.signals"),
     ({"feather.options": "3"}, "feather.options = 3 must be a table"),
+    ({"feathr.width_ratio": "5"}, "no block named 'feathr'; did you mean 'feather'?"),
 ])
 def test_out_of_range_and_misspelt_settings_say_what_is_expected(override, expected):
     exc = _plan_or_refusal("testbed", override)

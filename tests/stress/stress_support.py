@@ -29,6 +29,7 @@ from dataclasses import dataclass
 from typing import Any, Mapping
 
 import numpy as np
+from featherstar.cosim.swimmer.metrics import failed_preconditions
 
 #: The root rate each scene feeds the feather (for the root power torque x rate).
 ROOT_RATE = {"kinematic": "controller.rate_rad_s", "testbed": "servo.rate_rad_s"}
@@ -125,8 +126,11 @@ def physical_problems(result: Any, scene: str, morphology: str, tol: Tolerances 
     tol = tol or tolerances(morphology)
     m = metrics_of(result, scene)
     problems = []
-    if not result.complete:
-        problems.append("the run did not complete")
+    # a run shorter than a period cannot meet the window's preconditions; every other must hold
+    allowed = () if whole_periods else ("whole_period_in_window", "negative_impulse", "finite_thrust_metrics")
+    unmet = {k: v for k, v in failed_preconditions(result.summary).items() if k not in allowed}
+    if "error" in result.summary or unmet:
+        problems.append(f"the run did not complete: {result.summary.get('error') or unmet}")
     if not m["all_finite"]:
         bad = [k for k, v in result.signals.items() if not np.all(np.isfinite(v))]
         problems.append(f"non-finite samples in {bad}")
