@@ -27,24 +27,22 @@ from .log import ExperimentLog
 _NON_FINITE = {"nan", "inf", "-inf"}
 
 
+_TYPES = {"str": str, "bool": bool, "dict": dict, "list": list}
+
+
 def _is(kind: str, value: Any) -> bool:
     if kind == "number":
         return (isinstance(value, (int, float)) and not isinstance(value, bool)) or value in _NON_FINITE
     if kind == "int":
         return isinstance(value, int) and not isinstance(value, bool)
-    types = {"str": str, "bool": bool, "dict": dict, "list": list}
-    if kind == "any":
-        return True
-    if kind.endswith("|null"):
-        return value is None or _is(kind[: -len("|null")], value)
-    return isinstance(value, types[kind])
+    return isinstance(value, _TYPES[kind])
 
 
 @dataclass(frozen=True)
 class Entries:
     """The records of one kind a command writes.
 
-    `fields`: name → type ("number", "int", "str", "bool", "dict", "list", "any", "T|null").
+    `fields`: name → type ("number", "int", "str", "bool", "dict", "list").
     `key`: the field naming an entry (at most once per log); None for events that may repeat.
     `planned`: for a key, the fields the plan fixes (compared with the record), or None when the
     plan has no such entry; `plan` says in words what the plan holds (for the message).

@@ -7,6 +7,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 from featherstar.optimizer.bayes import optimize
 from featherstar.optimizer.bench.sim_prior import SimPrior, study_morphology
 from featherstar.optimizer.calibration.fit import calibrate
@@ -214,3 +216,20 @@ def test_a_damaged_summary_beside_a_recording_is_one_line(tmp_path, capsys):
     (tmp_path / "summary.json").write_bytes(b"\xff{")
     err = _one_line_error(capsys, ["calibrate", str(run), "--out", str(tmp_path / "cal")])
     assert "summary.json" in err
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(at=st.integers(0, 10**6), garbage=st.binary(min_size=1, max_size=6), cut=st.integers(0, 10**6))
+def test_a_damaged_recording_is_read_or_refused_with_one_line(tmp_path, at, garbage, cut):
+    """Bytes inserted anywhere and the file cut anywhere: a Recording, or an OptimizerError of one
+    line naming the file; never another exception."""
+    good = _write_run(tmp_path / "good.csv").read_bytes()
+    position, end = at % len(good), cut % (len(good) + 1)
+    damaged = tmp_path / "damaged.csv"
+    damaged.write_bytes((good[:position] + garbage + good[position:])[:max(end, position + len(garbage))])
+    try:
+        recording = read_recording(damaged)
+    except OptimizerError as exc:
+        assert "\n" not in str(exc) and str(damaged) in str(exc)
+    else:
+        assert len(recording.time_s) >= 8 and np.all(np.isfinite(recording.thrust_N))
