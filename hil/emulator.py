@@ -72,6 +72,8 @@ LAG_LIMIT_S = 0.02
 # While a trajectory plays or a log runs, the plant is advanced in pieces of this much device
 # time, requests answered in between (its devices have their own clocks; nothing is dropped).
 TIMED_PIECE_S = 0.02
+# ... with a real sleep between pieces: a queued request needs loop iterations to be answered.
+CATCH_UP_YIELD_S = 0.001
 _SILENT_MAX_S = 30.0                    # a silent device answers eventually, so stop() ends
 _READ_FC = {Function.HOLDING: 3, Function.INPUT: 4}
 log = logging.getLogger(__name__)
@@ -141,8 +143,8 @@ class Emulator:
     def tick_interval_s(self) -> float:
         """How often `serve` ticks: TICK_S while the plant moves, seldom once it rests (the
         watchdog, if armed, is checked at a tenth of a second)."""
-        if self.timed.active:   # catch up at once, yielding to requests between pieces
-            return 0.0 if self.clock() - (self._t_mono or 0.0) > TICK_S else TICK_S
+        if self.timed.active:   # catch up at once, letting requests through between pieces
+            return CATCH_UP_YIELD_S if self.clock() - (self._t_mono or 0.0) > TICK_S else TICK_S
         if not self.rest.resting:
             return TICK_S
         return IDLE_WATCHDOG_TICK_S if self.watchdog.timeout_s and not self.watchdog.tripped \
@@ -243,7 +245,9 @@ class Emulator:
             # A tick that comes late finds the client's commands still queued in the socket:
             # the silence is the emulator's own, not the client's (real firmware takes its
             # frames by interrupt). The next tick, after the queue, decides.
-            if late_s <= WATCHDOG_LATE_S:
+            # Catching up a device-timed plant likewise leaves the commands queued: judged
+            # once the plant has caught up with the clock.
+            if late_s <= WATCHDOG_LATE_S and self.clock() - (self._t_mono or 0.0) <= TICK_S:
                 self._check_watchdog()
 
     def _advance_plant(self) -> bool:
