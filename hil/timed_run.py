@@ -241,8 +241,11 @@ class _TimedRun:
                                     "detail": f"{lost} samples overwritten before they were read"})
         state = self._guarded("servo", lambda: player_state(self.servo))
         if state is PlayerState.IDLE and self.t_s > 0:
+            restarted = any(e["kind"] == "restart" and e["device"] == "servo"
+                            for e in self.events)
             raise DeviceFault("servo", "device_error", self.t_s,
-                              "the trajectory player stopped (watchdog or restart)")
+                              "the servo restarted: its trajectory is gone" if restarted
+                              else "the trajectory player stopped (its watchdog?)")
         return state is PlayerState.DONE
 
     def _run_times(self, name: str) -> tuple[np.ndarray, np.ndarray]:
