@@ -61,6 +61,36 @@ def one_run(emulator, clock: str, busy: int, periods: int) -> dict:
             "error": (run.stderr.strip().splitlines() or [""])[-1] if run.returncode else ""}
 
 
+def _number(x) -> float | None:
+    """A summary's number (NaN is written as the string 'nan'), or None."""
+    try:
+        value = float(x)
+    except (TypeError, ValueError):
+        return None
+    return value if value == value else None
+
+
+def summarise(runs: list[dict], busy: int) -> dict:
+    """Per mode and load: runs, complete runs, valid-period share, TR error vs the quiet mean."""
+    table = {}
+    for clock in ("pc", "device"):
+        quiet = [_number(r["thrust_ratio"]) for r in runs
+                 if r["clock"] == clock and not r["busy_processes"] and r["complete"]]
+        quiet = [q for q in quiet if q is not None]
+        tr_quiet = sum(quiet) / len(quiet) if quiet else None
+        for load in (0, busy):
+            rs = [r for r in runs if r["clock"] == clock and r["busy_processes"] == load]
+            trs = [_number(r["thrust_ratio"]) for r in rs if r["complete"]]
+            errors = [abs(tr / tr_quiet - 1) for tr in trs if tr is not None and tr_quiet]
+            table[f"{clock}, {load} busy"] = {
+                "runs": len(rs), "complete": sum(bool(r["complete"]) for r in rs),
+                "valid_share_min": min(r["valid_share"] for r in rs),
+                "valid_share_mean": sum(r["valid_share"] for r in rs) / len(rs),
+                "tr_of_complete_runs": trs, "tr_quiet_mean": tr_quiet,
+                "tr_error_vs_quiet_max": max(errors) if errors else None}
+    return table
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--plant", choices=("fmu", "flat-plate"), default="fmu")
@@ -76,20 +106,7 @@ def main() -> None:
                 for busy in (0, args.busy):
                     runs.append(one_run(emulator, clock, busy, args.periods))
                     print(json.dumps(runs[-1]), flush=True)
-    table = {}
-    for clock in ("pc", "device"):
-        quiet = [r["thrust_ratio"] for r in runs if r["clock"] == clock and not r["busy_processes"]
-                 and r["thrust_ratio"] is not None]
-        tr_quiet = sum(quiet) / len(quiet) if quiet else None
-        for busy in (0, args.busy):
-            rs = [r for r in runs if r["clock"] == clock and r["busy_processes"] == busy]
-            errors = [abs(r["thrust_ratio"] / tr_quiet - 1) for r in rs
-                      if tr_quiet and r["thrust_ratio"] is not None]
-            table[f"{clock}, {busy} busy"] = {
-                "runs": len(rs), "complete": sum(bool(r["complete"]) for r in rs),
-                "valid_share_min": min(r["valid_share"] for r in rs),
-                "valid_share_mean": sum(r["valid_share"] for r in rs) / len(rs),
-                "tr_error_vs_quiet_max": max(errors) if errors else None}
+    table = summarise(runs, args.busy)
     result = {"command": " ".join(["python", *sys.argv]), "plant": args.plant,
               "cpus": os.cpu_count(), "machine": platform.machine(),
               "note": "the machine is shared: other processes add to the busy ones",

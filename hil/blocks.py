@@ -68,7 +68,9 @@ class LoadCell(ModbusDevice):
         self.tare_on_start = tare_on_start
         self.inputs: Mapping[str, Port] = {}
         self.outputs: Mapping[str, Port] = {
-            "thrust_N": Port("thrust_N", "N", "tared load-cell reading, positive up")}
+            "thrust_N": Port("thrust_N", "N", "tared load-cell reading, positive up"),
+            "t_read_s": Port("t_read_s", "s", "run time at which the reading was taken, on the "
+                                              "PC's clock (the first step's read on time)")}
         spans = self.map.value.spans()
         if self.map.status is not None:
             spans.append((self.map.status.address, 1))
@@ -80,6 +82,9 @@ class LoadCell(ModbusDevice):
         self._thrust_N = math.nan
         self._last_raw: tuple[int, ...] | None = None
         self._last_change_mono = self._last_stable_mono = 0.0
+        self._read_mono = math.nan           # PC clock at the last reading
+        self._mono_at_t0: float | None = None  # PC clock that run time 0 corresponds to
+        self._t_read_s = math.nan
 
     def start(self, t0_s: float) -> None:
         self._open()
@@ -89,6 +94,7 @@ class LoadCell(ModbusDevice):
                 self.tare(t0_s)
             self._last_change_mono = self._last_stable_mono = time.monotonic()
             self._guard(t0_s, self._sample)
+        self._mono_at_t0, self._t_read_s = None, t0_s   # anchored at the first paced step
 
     def _on_reconnect(self, t_s: float) -> None:
         self._note(t_s, "reconnect", f"new connection to {self.link.where}: the transmitter may "
@@ -100,11 +106,14 @@ class LoadCell(ModbusDevice):
 
     def get_outputs(self) -> dict[str, float]:
         self._check_started()
-        return {"thrust_N": self._thrust_N}
+        return {"thrust_N": self._thrust_N, "t_read_s": self._t_read_s}
 
     def do_step(self, t_s: float, h_s: float) -> None:
         self._check_started()
         self._guard(t_s + h_s, self._sample)
+        if self._mono_at_t0 is None:   # the paced clock starts here: this read is on time
+            self._mono_at_t0 = self._read_mono - (t_s + h_s)
+        self._t_read_s = self._read_mono - self._mono_at_t0
         self._note_lag(t_s + h_s, self.status)
         # A transmitter that restarted has lost its tare, and the feather moves: no new one.
         self._note_restart(t_s + h_s, tare_unknown=True)
@@ -123,7 +132,7 @@ class LoadCell(ModbusDevice):
 
     def _sample(self) -> None:
         regs = self._plan.read(self.link, self.url.unit)
-        now = time.monotonic()
+        now = self._read_mono = time.monotonic()
         if self.map.status is not None:
             status = self.status = decode_status(self.map.status, regs[self.map.status.address])
             if status.error:

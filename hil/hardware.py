@@ -140,6 +140,8 @@ def with_hardware(scene: Scene, hardware: Mapping[str, str], *, step_s: float = 
         for block in blocks.values():
             if block.get("kind") == "recorder":
                 kept = [s for s in block.get("signals", []) if not s.startswith("feather")]
-                block["signals"] = [*kept, f"{LOADCELL_BLOCK}.thrust_N"]
+                # the reading and when the PC took it (the step grid is when it was due)
+                block["signals"] = [*kept, f"{LOADCELL_BLOCK}.thrust_N",
+                                    f"{LOADCELL_BLOCK}.t_read_s"]
     data["master"].update(coupling="gauss-seidel", realtime=True, step_s=step_s, adaptive=False)
     return scene_from_dict(data, name=scene.name)

@@ -48,6 +48,9 @@ POLL_S = 0.05             # the PC reads blocks this often; the rings hold secon
 REQUEST_TIMEOUT_S = 1.0
 RETRY_S = 3.0
 LEAD_S = 0.3              # the trajectory starts this long after it is armed
+# The watchdog's timeout while the device plays: a poll of a loaded PC may take long, and a
+# stroke that plays on for 2 s after the PC died ends anyway (then the watchdog holds it safe).
+TIMED_WATCHDOG_MS = 2000
 LOG_STALL_S = 10.0         # a log that gives no new sample for this long has stopped
 THRUST, ANGLE, COMMAND = f"{LOADCELL_BLOCK}.thrust_N", "servo.angle_rad", "controller.angle_rad"
 
@@ -219,8 +222,9 @@ class _TimedRun:
         self.polls += 1
         wd = self.servo.map.watchdog
         if wd is not None:   # a live client re-arms the device's watchdog (it feeds on writes)
+            timeout_ms = max(wd.timeout_ms, TIMED_WATCHDOG_MS)
             self._guarded("servo", lambda: self.servo.link.write_one(
-                wd.address, wd.timeout_ms, self.servo.url.unit))
+                wd.address, timeout_ms, self.servo.url.unit))
         for name, block in (("servo", self.servo), ("loadcell", self.cell)):
             device = LOADCELL_BLOCK if name == "loadcell" else name
             watch = self.sessions.get(name)
@@ -237,8 +241,11 @@ class _TimedRun:
                                     "detail": f"{lost} samples overwritten before they were read"})
         state = self._guarded("servo", lambda: player_state(self.servo))
         if state is PlayerState.IDLE and self.t_s > 0:
+            restarted = any(e["kind"] == "restart" and e["device"] == "servo"
+                            for e in self.events)
             raise DeviceFault("servo", "device_error", self.t_s,
-                              "the trajectory player stopped (watchdog or restart)")
+                              "the servo restarted: its trajectory is gone" if restarted
+                              else "the trajectory player stopped (its watchdog?)")
         return state is PlayerState.DONE
 
     def _run_times(self, name: str) -> tuple[np.ndarray, np.ndarray]:

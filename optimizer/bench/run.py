@@ -1,7 +1,8 @@
 """One stroke on the bench: the only place the optimizer calls the master with hardware.
 
 `run_on_bench` runs a scene with its servo and load cell swapped for devices (as
-`featherstar run --hardware` does: `featherstar.hil.hardware.with_hardware` + `featherstar.cosim.run_scene`) and
+`featherstar run --hardware` does: `featherstar.hil.hardware.with_hardware` +
+`featherstar.hil.timed_run.run_bench_scene`, streamed or device-timed) and
 returns what the bench recorded and the master's verdict on it. Everything hardware-facing in
 the optimizer (the bench study, calibration recordings, the bench in bench/) goes through this
 function, so moving to another way of stepping the master changes this module only.
@@ -16,8 +17,8 @@ import numpy as np
 
 from ...cosim.errors import StepError
 from ...cosim.scenes import load_scene
-from ...cosim.swimmer.run import run_scene
 from ...hil.hardware import LOADCELL_BLOCK, check_hardware_overrides, parse_hardware, with_hardware
+from ...hil.timed_run import run_bench_scene
 from ..errors import OptimizerError
 
 THRUST_SIGNAL = f"{LOADCELL_BLOCK}.thrust_N"
@@ -58,7 +59,8 @@ def run_on_bench(scene: str, hardware: Mapping[str, str], overrides: Mapping[str
     bench_scene = with_hardware(load_scene(scene), slots)
     check_hardware_overrides(bench_scene, overrides)
     try:
-        result = run_scene(bench_scene, dict(overrides), outputs=[THRUST_SIGNAL, ANGLE_SIGNAL])
+        # streamed, or device-timed when the URLs say clock=device (docs/hil.md)
+        result = run_bench_scene(bench_scene, dict(overrides), outputs=[THRUST_SIGNAL, ANGLE_SIGNAL])
     except StepError as exc:
         if exc.interrupted:
             raise KeyboardInterrupt(exc.interrupted) from exc

@@ -21,7 +21,7 @@ def test_blocks_satisfy_the_block_protocol_with_the_simulated_ports(emulator):
     cell = LoadCell("cell", emulator.loadcell_url, timeout_s=T)
     servo = Servo("servo", emulator.servo_url, timeout_s=T)
     assert isinstance(cell, Block) and isinstance(servo, Block)
-    assert list(cell.inputs) == [] and list(cell.outputs) == ["thrust_N"]
+    assert list(cell.inputs) == [] and list(cell.outputs) == ["thrust_N", "t_read_s"]
     assert list(servo.inputs) == ["setpoint_rad"]
     assert list(servo.outputs) == ["angle_rad", "rate_rad_s", "accel_rad_s2"]
     assert cell.outputs["thrust_N"].unit == "N"

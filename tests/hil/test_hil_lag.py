@@ -13,7 +13,7 @@ import pytest
 from featherstar.cosim.swimmer.validity import judge_periods
 from featherstar.hil.blocks import LoadCell, Servo
 from featherstar.hil.codec import decode_status
-from featherstar.hil.emulator import LAG_LIMIT_S, LOADCELL_UNIT
+from featherstar.hil.emulated_bench import LAG_LIMIT_S, LOADCELL_UNIT
 from featherstar.hil.plant import FlatPlatePlant
 from pymodbus.client import ModbusTcpClient
 

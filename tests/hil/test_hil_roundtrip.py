@@ -7,7 +7,7 @@ import itertools
 import pytest
 
 from featherstar.hil.blocks import LoadCell, Servo
-from featherstar.hil.emulator import REGISTER_DECIMALS
+from featherstar.hil.emulated_bench import REGISTER_DECIMALS
 
 pytestmark = pytest.mark.hil
 # Generous: a loaded 2-core machine can stall the emulator thread for tens of ms. Tests of

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from featherstar.hil.emulator import LOADCELL_UNIT, SERVO_UNIT, Emulator
+from featherstar.hil.emulated_bench import CATCH_UP_YIELD_S, LOADCELL_UNIT, SERVO_UNIT, Emulator
 from featherstar.hil.link import DeviceURL
 from featherstar.hil.plant import FlatPlatePlant
 from featherstar.hil.registers import Function, load_loadcell_map, load_servo_map
@@ -83,7 +83,7 @@ def _play(schedule_s: list[float]) -> tuple[np.ndarray, np.ndarray]:
     reader = LogReader(cell, emu.loadcell_map.value, DeviceClock(cell))
     for dt in schedule_s:
         clock.t += dt
-        while emu.tick_interval_s() == 0.0:    # the ticker catching up, piece by piece
+        while emu.tick_interval_s() == CATCH_UP_YIELD_S:   # the ticker catching up, piece by piece
             emu.tick()
         emu.tick()
     assert player_state(servo) is PlayerState.DONE

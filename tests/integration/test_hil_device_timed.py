@@ -1,16 +1,21 @@
-"""`featherstar run testbed --hardware ...&clock=device` against an emulator process, with two
-busy processes competing for both cores: the devices keep the time, so the run completes with
-its periods valid and the flat plate's symmetric stroke measures TR 1.0 (0.998-1.000 quiet)."""
+"""`featherstar run testbed --hardware ...&clock=device` against an emulator process: with two
+busy processes competing for both cores the devices keep the time, so the run completes with
+its periods valid and the flat plate's symmetric stroke measures TR 1.0 (0.998-1.000 quiet); a
+device restart or a SIGTERM midway ends it with its data kept and the servo safe."""
 from __future__ import annotations
 
 import json
+import signal
 import subprocess
 import sys
 import time
 
 import pytest
+from pymodbus.client import ModbusTcpClient
 
-from featherstar.hil.emulator import spawn_emulator
+from featherstar.hil.codec import decode_value
+from featherstar.hil.emulator import SERVO_UNIT, spawn_emulator
+from featherstar.hil.registers import load_servo_map
 
 pytestmark = [pytest.mark.hil, pytest.mark.realtime]
 BUSY = [sys.executable, "-c", "while True: pass"]
@@ -55,3 +60,56 @@ def test_clock_device_on_one_url_only_is_refused(capsys):
                  "--hardware", "loadcell=modbus-tcp://127.0.0.1:1?unit=1"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "clock=device" in err[0] and "both" in err[0]
+
+
+def _position_deg(port: int) -> float | None:
+    field = load_servo_map("servo-default").position
+    with ModbusTcpClient("127.0.0.1", port=port, timeout=1.0, retries=0) as client:
+        reply = client.read_holding_registers(field.address, count=2, device_id=SERVO_UNIT)
+        return None if reply.isError() else decode_value(field, reply.registers)
+
+
+def _start(emulator, out) -> subprocess.Popen:
+    return subprocess.Popen(
+        [sys.executable, "-m", "featherstar", "run", "testbed", "--quiet", "--no-figure",
+         "--out", str(out), "--hardware", f"servo={emulator.servo_url}&clock=device",
+         "--hardware", f"loadcell={emulator.loadcell_url}&clock=device",
+         "--set", "master.periods=4", "--set", "metrics.settle_periods=1"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def _wait_until_playing(emulator, run) -> None:
+    deadline = time.monotonic() + 60
+    while abs(_position_deg(emulator.port) or 0.0) < 10.0:
+        assert run.poll() is None, run.communicate()
+        assert time.monotonic() < deadline, "the stroke never started"
+        time.sleep(0.05)
+    time.sleep(0.5)
+
+
+@pytest.mark.parametrize("stop, status, words", [("reboot", 2, "restarted"),
+                                                  ("SIGTERM", 143, "interrupted by SIGTERM")])
+def test_a_device_timed_run_stopped_midway_keeps_its_data_and_the_servo_safe(tmp_path, stop,
+                                                                             status, words):
+    with spawn_emulator(plant="flat-plate", seed=1) as emulator:
+        run = _start(emulator, tmp_path)
+        try:
+            _wait_until_playing(emulator, run)
+            if stop == "reboot":
+                emulator.reboot()       # both devices, connections kept
+            else:
+                run.send_signal(signal.SIGTERM)
+            _, err = run.communicate(timeout=60)
+        finally:
+            run.kill()
+        assert run.returncode == status, err
+        line = next(ln for ln in err.splitlines() if ln.startswith("featherstar: error:"))
+        assert words in line and "partial results" in line
+        summary = json.loads((tmp_path / "summary.json").read_text())
+        assert summary["complete"] is False and summary["safe_position_confirmed"] == {"servo": True}
+        if stop == "reboot":
+            assert {e["device"] for e in summary["hardware_events"] if e["kind"] == "restart"} \
+                == {"servo", "loadcell_hw"}
+        assert len((tmp_path / "results.csv").read_text().splitlines()) > 100
+        time.sleep(0.5)
+        assert _position_deg(emulator.port) == pytest.approx(0.0, abs=0.5)
