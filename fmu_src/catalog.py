@@ -14,7 +14,7 @@ from .robot import robot_model
 from .servo import servo_model
 
 _BUILDERS: dict[str, tuple[Callable[..., Model], tuple[str, ...]]] = {
-    "feather": (feather_model, ("morphology", "n_units", "root_support", "drag_points", "drag_split")),
+    "feather": (feather_model, ("morphology", "n_units", "root_support", "drag_points", "drag_split", "wake")),
     "servo": (servo_model, ()),
     "robot": (robot_model, ()),
 }
