@@ -4,6 +4,7 @@ moving is the quasi-steady model with the constant C_0, a strip in a steady stre
 law's analytic state, and a rigid plate's wake thrust agrees with bench/wake_memory.py's
 independent strip model."""
 import importlib.util
+import json
 import sys
 from pathlib import Path
 
@@ -128,6 +129,15 @@ def test_rigid_plate_wake_thrust_ratio_matches_the_strip_study(bench, law):
     drag_only = reference - bench.RigidPlate().reactive_thrust_N(theta, rate, accel)
     assert model_ratio == pytest.approx(bench.thrust_ratio(drag_only), rel=0.01)
     assert model_ratio < 0.8 * stroke.t_up_s / stroke.t_down_s
+
+
+def test_wake_constants_are_the_fit_of_bench_wake_memory():
+    fit = json.loads((BENCH.parents[1] / "docs" / "results" / "wake_memory.json").read_text())["laws"]
+    for law, (drag_coeff_0, forcing, decay_widths) in WAKE_CONSTANTS.items():
+        assert drag_coeff_0 == pytest.approx(fit[law]["drag_coeff_0"], rel=1e-4)
+        assert forcing == pytest.approx(fit[law]["forcing_B"], rel=1e-4)
+        assert decay_widths == pytest.approx(fit[law]["gamma_widths"], rel=1e-4)
+        assert "steady_drag_coeff" in fit[law]
 
 
 def test_unknown_wake_law_is_refused():
