@@ -15,11 +15,15 @@ along) to a rigid plate pivoting at its root, with the energy-consistent reactiv
 
 with three decay laws: the plate leaves its wake ("relative": u|s|), the wake convects itself
 away ("self": u|u|), the wake is left behind at the plate's speed ("plate": u|v_n|).
-The constants (C_0, B, γ) of each law are fitted to the *sinusoidal* plate data alone: the
+The constants (C_0, B, γ) of each law are fitted jointly to the sinusoidal plate data (the
 Fourier-averaged drag coefficient of a strip oscillating at KC must follow Luhar & Nepf's
-max(10 KC^(−1/3), 1.95) for KC 2–400. Nothing is fitted to the paper. Then every law predicts the
-rigid plate's TR under the paper's symmetric stroke and its best TR over the servo-feasible
-strokes (a grid), next to the quasi-steady model.
+max(10 KC^(−1/3), 1.95) for KC 2–400) and to the steady plate's drag (C_0 s² once the wake has
+settled must be STEADY_PLATE_DRAG_COEFF), one more point of the same least squares. Nothing is
+fitted to the paper. These are the constants of the feather model's `wake` option
+(featherstar.fmu_src.fluid.WAKE_CONSTANTS; tests/fmu_src/test_wake_physics.py checks they are this
+JSON's); the laws are written here again in numpy, independently of the model, which a test
+compares with. Then every law predicts the rigid plate's TR under the paper's symmetric stroke and
+its best TR over the servo-feasible strokes (a grid), next to the quasi-steady model.
 
 Writes <out>/wake_memory.json and <out>/wake_memory.png (default docs/results).
 
@@ -47,6 +51,9 @@ from featherstar.fmu_src.fluid import dnv_added_mass_coeff, oscillatory_drag_coe
 WATER_DENSITY_KG_M3 = 1000.0
 WIDTH_M, LENGTH_M = 0.075, 0.115  # the paper's feather
 STRIPS = 16
+#: A flat plate broadside to a steady stream (Hoerner, Fluid-Dynamic Drag, 1965, ch. 3: 1.17 for a
+#: square plate, 1.2 at aspect ratio 1.5, the feather's l/w): the wake laws' other fit point.
+STEADY_PLATE_DRAG_COEFF = 1.2
 MIN_RAMP_S, MIN_PHASE_S = 0.32, 0.02  # servo limits of optimizer/space.py at 60°, 1.5 s
 
 DecayLaw = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
@@ -95,20 +102,34 @@ def sinusoidal_drag_coeff(model: WakeModel, kc: float, periods: int = 10) -> flo
     return float(work / (0.5 * period * 4 / (3 * math.pi)))
 
 
-def fit_wake_model(law: str, kcs: np.ndarray) -> tuple[WakeModel, float]:
-    """Least squares in log C_d against Luhar & Nepf over `kcs`; returns the model and rms log error."""
+def steady_drag_coeff(model: WakeModel) -> float:
+    """Drag coefficient of a strip moving at constant speed once its wake has settled: C_0 s²
+    (speed 1, width 1), the wake integrated from rest over 2000 widths of travel."""
+    sol = solve_ivp(lambda t, u: model.rate(u, 1.0 - u, np.array(1.0), 1.0), (0.0, 2000.0), [0.0],
+                    rtol=1e-9, atol=1e-12, method="LSODA")
+    if not sol.success:
+        raise RuntimeError(f"wake law '{model.law}', steady plate: {sol.message}")
+    return float(model.drag_coeff_0 * (1.0 - sol.y[0, -1]) ** 2)
+
+
+def fit_wake_model(law: str, kcs: np.ndarray, steady: bool = True) -> tuple[WakeModel, float]:
+    """Least squares in log C_d against Luhar & Nepf over `kcs` and, with `steady`, the steady
+    plate's STEADY_PLATE_DRAG_COEFF as one more point; returns the model and rms log error."""
     target = np.log(luhar_nepf(kcs))
 
     def error(log_params: np.ndarray) -> float:
         model = WakeModel(law, *np.exp(log_params))
         fitted = np.array([sinusoidal_drag_coeff(model, k) for k in kcs])
-        return float(np.sum((np.log(fitted) - target) ** 2))
+        residual = np.sum((np.log(fitted) - target) ** 2)
+        if steady:
+            residual += (math.log(steady_drag_coeff(model)) - math.log(STEADY_PLATE_DRAG_COEFF)) ** 2
+        return float(residual)
 
     starts = [(1.0, 0.0, 0.0), (2.0, -1.0, 1.0), (1.0, 1.0, -1.0), (2.0, 0.0, 2.0)]
     best = min((minimize(error, np.array(x0), method="Nelder-Mead",
                          options={"maxiter": 300, "xatol": 1e-3, "fatol": 1e-5}) for x0 in starts),
                key=lambda r: r.fun)
-    return WakeModel(law, *map(float, np.exp(best.x))), math.sqrt(best.fun / len(kcs))
+    return WakeModel(law, *map(float, np.exp(best.x))), math.sqrt(best.fun / (len(kcs) + steady))
 
 
 class RigidPlate:
@@ -184,6 +205,7 @@ def run(out: Path, quick: bool) -> dict:
         models[law] = model
         result["laws"][law] = {"drag_coeff_0": model.drag_coeff_0, "forcing_B": model.forcing_B,
                                "gamma_widths": model.gamma_widths, "fit_rms_log": rms,
+                               "steady_drag_coeff": steady_drag_coeff(model),
                                "fitted_drag_coeff": [sinusoidal_drag_coeff(model, k) for k in kcs]}
         print(f"{law}: C_0 {model.drag_coeff_0:.2f}, B {model.forcing_B:.3f}, γ {model.gamma_widths:.2f} w, "
               f"rms log error {rms:.3f}", flush=True)

@@ -15,7 +15,7 @@ from .servo import servo_model
 from .stroke_source import constant_source_model, stroke_source_model
 
 _BUILDERS: dict[str, tuple[Callable[..., Model], tuple[str, ...]]] = {
-    "feather": (feather_model, ("morphology", "n_units", "root_support", "drag_points", "drag_split")),
+    "feather": (feather_model, ("morphology", "n_units", "root_support", "drag_points", "drag_split", "wake")),
     "servo": (servo_model, ()),
     "robot": (robot_model, ()),
     # signal sources: the SSP export's FMUs of a scene's stroke and constant blocks

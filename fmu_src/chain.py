@@ -24,12 +24,13 @@ this replaces grew as N³).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable, Sequence
+from typing import Sequence
 
 import casadi as ca
 
 from .drag_quadrature import DragRule
-from .fluid import fluid_loads, quadratic_drag_N
+from .fluid import fluid_loads
+from .strip_drag import DragStrip, StripDrag, WakeLaw, strip_drag
 
 
 @dataclass(frozen=True)
@@ -43,18 +44,6 @@ class PlatePoint:
     mass_kg: ca.SX
     added_mass_kg: ca.SX
     volume_m3: ca.SX
-
-
-@dataclass(frozen=True)
-class DragStrip:
-    """A straight line of a plate from `start` to `end` (each (along_m, across_m), as a
-    PlatePoint's) that carries the drag of the strip of plate around it: −∫₀¹ f(along(t)) |s| s dt n,
-    s the normal speed relative to the water, f = `drag_factor_kg_m(along_m)` = ½ ρ C_d × the
-    strip's area. On a rigid plate s is affine along the line (`featherstar.fmu_src.drag_quadrature`)."""
-
-    start: tuple[ca.SX, ca.SX]
-    end: tuple[ca.SX, ca.SX]
-    drag_factor_kg_m: Callable[[ca.SX], ca.SX]
 
 
 @dataclass(frozen=True)
@@ -103,6 +92,9 @@ class ChainSolution:
     volume_m3: ca.SX
     volume_height_m4: ca.SX  # Σ_p V_p y_p: the buoyancy's potential is −(ρ − ρ_s) g times this
     tip_m: tuple[ca.SX, ca.SX]
+    wake_rates: ca.SX  # u̇ of every strip's wake states, in the order of the links' strips
+    wake_energy_J: ca.SX  # Σ ½ m_w u²: the wake's kinetic energy
+    dissipation_W: ca.SX  # the drag's power lost in the water: relative motion plus the wake's decay
 
 
 def _vec(*components: ca.SX) -> ca.SX:
@@ -115,15 +107,24 @@ class _Sums:
     def __init__(self) -> None:
         self.drag_y = self.momentum_y = self.surge_mass = self.kinetic = ca.SX(0)
         self.volume = self.volume_height = ca.SX(0)
+        self.wake_energy = self.dissipation = ca.SX(0)
+        self.wake_rates: list[ca.SX] = []
+
+    def add(self, drag: StripDrag) -> None:
+        self.drag_y += drag.drag_y_N
+        self.wake_rates += drag.wake_rates
+        self.wake_energy += drag.wake_energy_J
+        self.dissipation += drag.dissipation_W
 
 
 def solve_chain(
-    links: Sequence[Link], motion: ChainMotion, net_buoyancy_N_m3: ca.SX, drag_rule: DragRule
+    links: Sequence[Link], motion: ChainMotion, net_buoyancy_N_m3: ca.SX, drag_rule: DragRule,
+    wake: WakeLaw | None = None,
 ) -> ChainSolution:
     """Accelerations of every joint and fold and the load-cell outputs, in O(len(links)).
 
     `net_buoyancy_N_m3` is (ρ − ρ_s) g: the net upward (+y) force per unit volume; `drag_rule`
-    integrates the drag along each strip."""
+    integrates the drag along each strip; `wake` (strips with a StripWake) gives their wakes' rates."""
     n_links = len(links)
     flapped = [j for j, link in enumerate(links) if link.flap]
     if motion.joint_angles.numel() != n_links - 1 or motion.fold_angles.numel() != len(flapped):
@@ -164,8 +165,10 @@ def solve_chain(
             return _vec(along, 0, 0), _vec(vel_along, vel_normal + rate * along, 0)
 
         for strip in link.spine_drag:
-            wrench, _ = _strip_drag(strip, drag_rule, _vec(0, 1, 0), spine_kinematics, frame, sums)
-            bias = bias + wrench
+            drag = strip_drag(strip, drag_rule, wake, _vec(0, 1, 0), spine_kinematics, frame.flow_speed_m_s * frame.up,
+                              frame.up)
+            sums.add(drag)
+            bias = bias + drag.wrench
         inertia = _spine_inertia(link.spine)
         if link.flap:
             k = fold_index[j]
@@ -191,9 +194,11 @@ def solve_chain(
                         _vec(vel_along, vel_normal, 0) + ca.cross(flap_spin, from_hinge))
 
             for strip in link.flap_drag:
-                wrench, fold_moment = _strip_drag(strip, drag_rule, normal, flap_kinematics, frame, sums)
-                bias = bias + wrench
-                fold_free = fold_free + fold_moment
+                drag = strip_drag(strip, drag_rule, wake, normal, flap_kinematics, frame.flow_speed_m_s * frame.up,
+                                  frame.up)
+                sums.add(drag)
+                bias = bias + drag.wrench
+                fold_free = fold_free + drag.fold_moment
             flap_inertia, fold_inertia, coupling = _flap_inertia(link.flap, cf, sf)
             flap_terms[j] = (fold_inertia, coupling, fold_free)
             # The fold equation d ψ̈ + couplingᵀA + fold_free = 0 eliminates ψ̈ into the link.
@@ -254,6 +259,9 @@ def solve_chain(
         volume_m3=sums.volume,
         volume_height_m4=sums.volume_height,
         tip_m=tip,
+        wake_rates=ca.vertcat(*sums.wake_rates),
+        wake_energy_J=sums.wake_energy,
+        dissipation_W=sums.dissipation,
     )
 
 
@@ -289,32 +297,6 @@ def _point_wrench(pt: PlatePoint, offset: ca.SX, normal: ca.SX, spin: ca.SX, vel
     sums.kinetic += 0.5 * m * ca.dot(velocity, velocity) + 0.5 * m_a * ca.dot(normal, velocity) ** 2
     sums.volume += pt.volume_m3
     sums.volume_height += pt.volume_m3 * (frame.origin_y + frame.sin_abs * offset[0] + frame.cos_abs * offset[1])
-    return wrench, fold_moment
-
-
-def _strip_drag(strip: DragStrip, rule: DragRule, normal: ca.SX,
-                kinematics: Callable[[ca.SX, ca.SX], tuple[ca.SX, ca.SX]], frame: _Frame,
-                sums: _Sums) -> tuple[ca.SX, ca.SX]:
-    """The planar wrench about the link origin that the strip's drag asks of the link (as
-    `_point_wrench`'s, the negative of the drag's) and its moment about a flap hinge.
-    `kinematics(along, across)` gives a point's offset and velocity in the link frame."""
-
-    def normal_speed(along, across):
-        offset, velocity = kinematics(along, across)
-        return offset, ca.dot(normal, velocity + frame.flow_speed_m_s * frame.up)
-
-    (a0, c0), (a1, c1) = strip.start, strip.end
-    _, speed_start = normal_speed(a0, c0)
-    _, speed_end = normal_speed(a1, c1)
-    wrench, fold_moment, drag_y = ca.SX.zeros(3), ca.SX(0), ca.SX(0)
-    for t, weight in rule.nodes(speed_start, speed_end):
-        along, across = a0 + t * (a1 - a0), c0 + t * (c1 - c0)
-        offset, speed = normal_speed(along, across)
-        drag = quadratic_drag_N(weight * strip.drag_factor_kg_m(along), speed, normal)
-        wrench = wrench - _vec(offset[0] * drag[1] - offset[1] * drag[0], drag[0], drag[1])
-        fold_moment = fold_moment + across * ca.dot(normal, drag)
-        drag_y = drag_y + ca.dot(drag, frame.up)
-    sums.drag_y += drag_y
     return wrench, fold_moment
 
 

@@ -28,9 +28,10 @@ import casadi as ca
 from .errors import ModelError
 from .model import Model, Parameter, Variable
 from .contact import one_way_stop
-from .chain import ChainMotion, DragStrip, Link, PlatePoint, solve_chain
+from .chain import ChainMotion, Link, PlatePoint, solve_chain
 from .drag_quadrature import DragRule
-from .fluid import dnv_added_mass_coeff, oscillatory_drag_coeff, stroke_keulegan_carpenter
+from .strip_drag import DragStrip, StripWake, WakeLaw
+from .fluid import WAKE_CONSTANTS, WAKE_LAWS, dnv_added_mass_coeff, oscillatory_drag_coeff, stroke_keulegan_carpenter
 
 MORPHOLOGIES = ("plain", "chordwise", "spanwise")
 GAUSS = (0.5 - 0.5 / math.sqrt(3.0), 0.5 + 0.5 / math.sqrt(3.0))
@@ -79,6 +80,22 @@ def _common_parameters() -> list[Parameter]:
     ]
 
 
+#: Parameters of the quasi-steady drag law that a wake replaces (its C_0 is constant: the wake
+#: itself makes an oscillating plate's drag depend on KC, so C_d(KC) is not counted twice).
+QUASI_STEADY_DRAG = ("oscillatory_drag", "stroke_amplitude_rad", "drag_coeff")
+
+
+def _wake_parameters(law: str) -> list[Parameter]:
+    drag_coeff_0, forcing, decay_widths = WAKE_CONSTANTS[law]
+    return [
+        Parameter("wake_drag_coeff", drag_coeff_0, "1", 0.0, 20.0,
+                  f"C_0 of the drag on the speed relative to the wake ('{law}' law fitted to oscillatory and steady plate data)"),
+        Parameter("wake_forcing", forcing, "1", 0.0, 10.0, "B: how fast the drag sets the dragged water moving"),
+        Parameter("wake_decay_widths", decay_widths, "1", 0.0, 1000.0,
+                  "gamma: the wake's decay length in feather widths", True),
+    ]
+
+
 def _hinge_parameters(fold_limit_deg: float) -> list[Parameter]:
     return [
         Parameter("hinge_stiffness_Nm_rad_m", 1e-2, "N.m/rad/m", 0.0, 1.0,
@@ -108,7 +125,8 @@ def _morphology_parameters(morphology: str) -> list[Parameter]:
 
 
 def feather_model(morphology: str = "plain", n_units: int = 10, root_support: bool | None = None,
-                  drag_points: int = DEFAULT_DRAG_POINTS, drag_split: bool = DEFAULT_DRAG_SPLIT) -> Model:
+                  drag_points: int = DEFAULT_DRAG_POINTS, drag_split: bool = DEFAULT_DRAG_SPLIT,
+                  wake: str = "none") -> Model:
     """Build the feather model. `morphology`, `n_units`, `root_support` and the drag quadrature
     change the equations' structure and are therefore build options; every physical constant is a
     parameter.
@@ -116,6 +134,10 @@ def feather_model(morphology: str = "plain", n_units: int = 10, root_support: bo
     `drag_points`, `drag_split`: the quadrature of the quadratic drag along each link's span and
     across each flap's chord (`featherstar.fmu_src.drag_quadrature`): that many Gauss points, on
     each side of the zero of the normal speed with `drag_split`.
+
+    `wake`: "none" (quasi-steady drag with C_d(KC)) or a law of `featherstar.fmu_src.fluid.WAKE_LAWS`:
+    one wake state per mass point of every plate, the normal speed of the water it drags along,
+    and drag on the speed relative to it with the law's constant C_0 (docs/model.md).
 
     `root_support` (spanwise only, default True): the part between the root and the hinge at
     l_root is held by the support (the paper, Sec. II-A: the spanwise feathers "have a joint at a
@@ -133,9 +155,13 @@ def feather_model(morphology: str = "plain", n_units: int = 10, root_support: bo
         raise ModelError(f"feather drag_points = {drag_points!r} must be an integer in [1, 64]")
     if not isinstance(drag_split, bool):
         raise ModelError(f"feather drag_split = {drag_split!r} must be true or false")
+    if wake != "none" and wake not in WAKE_LAWS:
+        raise ModelError(f"feather wake = {wake!r} is unknown; valid: none, {', '.join(WAKE_LAWS)}")
     supported = morphology == "spanwise" and root_support is not False
 
     parameters = _common_parameters() + _morphology_parameters(morphology)
+    if wake != "none":
+        parameters = [par for par in parameters if par.name not in QUASI_STEADY_DRAG] + _wake_parameters(wake)
     p = ca.SX.sym("p", len(parameters))
     P = {par.name: p[i] for i, par in enumerate(parameters)}
     theta0, theta0_rate, theta0_accel, flow_speed = (ca.SX.sym(n) for n in ("th", "thd", "thdd", "U"))
@@ -158,9 +184,28 @@ def feather_model(morphology: str = "plain", n_units: int = 10, root_support: bo
     added_mass_coeff = P["added_mass_scale"] * dnv_added_mass_coeff(long_ / short) * short**2 * long_ / (width**2 * length)
 
     def drag_coeff(span_m):
-        """C_d at distance span_m from the root: oscillatory-flow plate value or the constant."""
+        """C_d at distance span_m from the root: oscillatory-flow plate value or the constant; with
+        a wake, the law's C_0."""
+        if wake != "none":
+            return P["wake_drag_coeff"]
         kc = stroke_keulegan_carpenter(span_m, P["stroke_amplitude_rad"], width)
         return ca.if_else(P["oscillatory_drag"] > 0.5, oscillatory_drag_coeff(kc), P["drag_coeff"])
+
+    wake_states: list[Variable] = []
+    wake_symbols: list[ca.SX] = []
+
+    def strip_wake(at: tuple[float, float], plate: str) -> StripWake | None:
+        """Two new wake states at the fractions `at` of a strip (its mass points), or None."""
+        if wake == "none":
+            return None
+        pair = []
+        for t in at:
+            k = len(wake_symbols)
+            wake_symbols.append(ca.SX.sym(f"u{k}"))
+            wake_states.append(Variable(f"wake_{k}_m_s", "m/s",
+                                        f"normal speed of the water dragged along by {plate} (point {k})"))
+            pair.append(wake_symbols[-1])
+        return StripWake(at, tuple(pair))
 
     # Link lengths, joint kinds and bending stiffness (midpoint layout; see module docstring).
     if morphology == "spanwise":
@@ -196,7 +241,8 @@ def feather_model(morphology: str = "plain", n_units: int = 10, root_support: bo
         ) for c in GAUSS)
         # The spine's drag along the whole link: the normal speed is affine along it.
         spine_drag = (DragStrip((0, 0), (link_length, 0),
-                                lambda along, arc=arc, a=spine * link_length: 0.5 * rho * drag_coeff(arc + along) * a),)
+                                lambda along, arc=arc, a=spine * link_length: 0.5 * rho * drag_coeff(arc + along) * a,
+                                strip_wake(GAUSS, f"link {len(links)}'s spine")),)
         flap_points: tuple[PlatePoint, ...] = ()
         flap_drag: tuple[DragStrip, ...] = ()
         if morphology == "chordwise":
@@ -213,6 +259,7 @@ def feather_model(morphology: str = "plain", n_units: int = 10, root_support: bo
             flap_drag = tuple(DragStrip(
                 (c * link_length, 0), (c * link_length, chord),
                 lambda along, arc=arc, a=2 * quarter * 2: 0.5 * rho * drag_coeff(arc + along) * a,
+                strip_wake(ADDED_MASS_CHORD, f"link {len(links)}'s flaps"),
             ) for c in GAUSS)
         links.append(Link(link_length, spine_points, spine_drag, flap_points, flap_drag, spine / 2))
         arc = arc + link_length
@@ -221,7 +268,8 @@ def feather_model(morphology: str = "plain", n_units: int = 10, root_support: bo
     net_buoyancy = (rho - rho_s) * grav  # per unit volume, along +y
     solution = solve_chain(links, ChainMotion(
         theta0, theta0_rate, theta0_accel, flow_speed, q, Q_rate[:n_joints], internal[:n_joints],
-        psi, Q_rate[n_joints:], internal[n_joints:]), net_buoyancy, DragRule(drag_points, drag_split))
+        psi, Q_rate[n_joints:], internal[n_joints:]), net_buoyancy, DragRule(drag_points, drag_split),
+        None if wake == "none" else WakeLaw(wake, P.get("wake_forcing"), P.get("wake_decay_widths"), width))
     Q_accel = ca.vertcat(solution.joint_accels, solution.fold_accels)
     # Buoyancy energy counted from the position of least potential a point can reach (no point is
     # farther than l + w from the root), so that the energy is never negative.
@@ -233,6 +281,7 @@ def feather_model(morphology: str = "plain", n_units: int = 10, root_support: bo
         states[n_in] = Variable(f"joint_{n_in}_rad", "rad", "relative angle of the spanwise hinge (fold < 0)")
     states += [Variable(f"flap_{k}_rad", "rad", f"fold angle of the chordwise flaps on link {k}") for k in range(n_flaps)]
     states += [Variable(s.name.replace("_rad", "_rate_rad_s"), "rad/s", "rate of " + s.name) for s in list(states)]
+    states += wake_states
     inputs = (
         Variable("root_angle_rad", "rad", "root (actuator) angle θ0 from the x axis"),
         Variable("root_rate_rad_s", "rad/s", "root angular rate"),
@@ -255,25 +304,35 @@ def feather_model(morphology: str = "plain", n_units: int = 10, root_support: bo
                  "along y; a body carrying the feather adds it to its inertia (thrust_N is the force on a root "
                  "that does not accelerate)"),
     )
+    output_exprs = [solution.thrust_N, solution.root_torque_Nm, tip_x, tip_y, fold_angle,
+                    solution.kinetic_energy_J + elastic_energy + buoyancy_energy, solution.drag_thrust_N,
+                    solution.momentum_y_Ns, solution.surge_mass_kg]
+    if wake != "none":
+        outputs += (
+            Variable("wake_energy_J", "J", "kinetic energy of the water the strips drag along (not in mechanical_energy_J)"),
+            Variable("fluid_dissipation_W", "W",
+                     "power the drag loses in the water: the plate's motion relative to its wake plus the wake's decay"),
+        )
+        output_exprs += [solution.wake_energy_J, solution.dissipation_W]
+    n_rates = 2 * Q.numel() + len(wake_symbols)
     # Merge structurally equal subexpressions built separately per point: halves the generated C.
     xdot, outputs_expr = ca.vertsplit(
-        ca.cse(ca.vertcat(Q_rate, Q_accel, solution.thrust_N, solution.root_torque_Nm, tip_x, tip_y, fold_angle,
-                          solution.kinetic_energy_J + elastic_energy + buoyancy_energy, solution.drag_thrust_N,
-                          solution.momentum_y_Ns, solution.surge_mass_kg)),
-        [0, 2 * Q.numel(), 2 * Q.numel() + 9])
+        ca.cse(ca.vertcat(Q_rate, Q_accel, solution.wake_rates, *output_exprs)), [0, n_rates, n_rates + len(output_exprs)])
     return Model(
         name=f"feather_{morphology}",
-        description=f"{morphology} feather, {n_units} units, flapped at the root in water",
+        description=f"{morphology} feather, {n_units} units, flapped at the root in water"
+                    + ("" if wake == "none" else f", with a wake ('{wake}' decay)"),
         states=tuple(states),
         inputs=inputs,
         parameters=tuple(parameters),
         outputs=outputs,
-        x=ca.vertcat(Q, Q_rate),
+        x=ca.vertcat(Q, Q_rate, *wake_symbols),
         u=ca.vertcat(theta0, theta0_rate, theta0_accel, flow_speed),
         p=p,
         xdot=xdot,
         y=outputs_expr,
         options={"morphology": morphology, "n_units": n_units, "drag_points": drag_points, "drag_split": drag_split,
+                 "wake": wake,
                  **({"root_support": supported} if morphology == "spanwise" else {})},
     )
 

@@ -78,3 +78,29 @@ def quadratic_drag_N(drag_factor_kg_m: ca.SX, normal_speed_m_s: ca.SX, normal: c
     """Normal drag −f |s| s n of a piece of plate with drag factor f = ½ ρ C_d A moving at normal
     speed s relative to the water."""
     return -drag_factor_kg_m * ca.fabs(normal_speed_m_s) * normal_speed_m_s * normal
+
+
+#: Wake memory (issue 26, item 1): each strip drags along water whose normal velocity u relaxes as
+#:     w u̇ = B F/D − decay(u, s, v)/γ,   s = v_n − u,   drag −½ ρ C_0 A |s| s,
+#: (F/D = s|s| for a uniform strip; w the feather's width) under one of three decay laws: the
+#: plate leaves its wake ("relative", u|s|), the wake convects itself away ("self", u|u|), the wake
+#: is left behind at the plate's speed ("plate", u|v_n|).
+WAKE_LAWS = ("relative", "self", "plate")
+
+#: (C_0, B, γ in widths) per law, fitted jointly (`python bench/wake_memory.py`, least squares in
+#: log C_d, docs/results/wake_memory.json) to the Fourier-averaged drag coefficient of a plate
+#: oscillating sinusoidally at KC 2–400 (Luhar & Nepf 2016's max(10 KC^(−1/3), 1.95), itself a fit
+#: to Keulegan & Carpenter 1958 and Sarpkaya & O'Keefe 1996) and to the steady plate's 1.2 (Hoerner
+#: 1965) as one more point. Nothing is fitted to the paper.
+WAKE_CONSTANTS: dict[str, tuple[float, float, float]] = {
+    "relative": (6.7958, 0.27234, 3.8267),
+    "self": (6.5631, 0.23380, 4.0848),
+    "plate": (6.6512, 0.26223, 7.6475),
+}
+
+
+def wake_decay(law: str, wake_speed: ca.SX, relative_speed: ca.SX, normal_speed: ca.SX) -> ca.SX:
+    """decay(u, s, v) of `law` (m²/s²): u|s|, u|u| or u|v|. Its product with u is never negative,
+    so the decay only dissipates the wake's energy."""
+    scale = {"relative": relative_speed, "self": wake_speed, "plate": normal_speed}[law]
+    return wake_speed * ca.fabs(scale)

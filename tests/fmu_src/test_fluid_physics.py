@@ -7,6 +7,8 @@ import math
 import casadi as ca
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from featherstar.cosim.swimmer.stroke import Stroke, root_motion, root_motion_symbolic
 from featherstar.fmu_src.errors import ModelError
 from featherstar.fmu_src.feather import GAUSS, feather_model
@@ -143,21 +145,44 @@ def test_rigid_plate_drag_only_thrust_ratio_is_the_time_ratio_with_oscillatory_d
     assert thrust[thrust > 0].sum() / -thrust[thrust < 0].sum() == pytest.approx(stroke.t_up_s / stroke.t_down_s, rel=0.01)
 
 
-def test_split_drag_rule_is_exact_and_gauss_points_converge_to_it():
-    """Flaps folding and unfolding at rates whose normal speed changes sign across the chord,
-    constant C_d: |s| s is quadratic on either side of the zero, so 2 points a side are exact (equal
-    to 8 a side to rounding); Gauss points over the whole chord converge to that value slowly
-    (2 points: 0.2 % off; 64: below 1e-6)."""
+@pytest.fixture(scope="module")
+def drag_rules():
+    """drag_thrust_N(state, inputs) of the chordwise feather (3 units, constant C_d) per drag rule."""
+    functions = {}
+    for points, split in [(2, True), (8, True), (2, False), (32, False)]:
+        model = feather_model("chordwise", 3, drag_points=points, drag_split=split)
+        p = model.parameter_vector({"oscillatory_drag": 0.0})
+        f = model.function()
+        functions[(points, split)] = lambda x, u, f=f, p=p: float(f(x, u, p)[1][OUT["drag_thrust"]])
+    return functions
+
+
+@settings(max_examples=25, deadline=None)
+@given(folds=st.lists(st.floats(0.0, 1.5), min_size=4, max_size=4),
+       fold_rates=st.lists(st.floats(-10.0, 10.0), min_size=4, max_size=4),
+       joints=st.lists(st.floats(-0.3, 0.3), min_size=6, max_size=6),
+       root=st.tuples(st.floats(-1.0, 1.0), st.floats(-3.0, 3.0), st.floats(-0.1, 0.1)))
+def test_split_drag_rule_is_exact_and_gauss_points_converge_to_it(drag_rules, folds, fold_rates, joints, root):
+    """Any state of a chordwise feather, constant C_d: the normal speed is affine along every strip
+    and |s| s quadratic on either side of its zero, so 2 points a side are exact (equal to 8 a side
+    to rounding), and Gauss points over whole strips converge to the same value (32 points)."""
+    state = np.r_[joints[:3], folds, joints[3:], fold_rates]  # 3 joints, 4 flaps, then their rates
+    inputs = [root[0], root[1], 0.0, root[2]]
+    exact = drag_rules[(8, True)](state, inputs)
+    scale = abs(exact) + 1e-9
+    assert abs(drag_rules[(2, True)](state, inputs) - exact) <= 1e-12 * scale
+    assert abs(drag_rules[(32, False)](state, inputs) - exact) <= 1e-4 * scale
+
+
+def test_gauss_points_are_off_where_the_speed_changes_sign_along_the_chord(drag_rules):
+    """Flaps folding and unfolding at rates whose normal speed changes sign across the chord:
+    2 Gauss points over the chord are 0.2 % off the exact value, 32 below 1e-6."""
     state = np.zeros(14)  # 3 joints and 4 flaps, then their rates
     state[3:7], state[10:14] = [0.6, 0.4, 0.5, 0.3], [8.0, -6.0, 5.0, -7.0]  # fold angles and rates
-    def drag_part(points, split):
-        model = feather_model("chordwise", 3, drag_points=points, drag_split=split)
-        y = model.function()(state, [0.2, 1.5, 0.0, 0.0], model.parameter_vector({"oscillatory_drag": 0.0}))[1]
-        return float(y[OUT["drag_thrust"]])
-    exact = drag_part(8, True)
-    assert drag_part(2, True) == pytest.approx(exact, rel=1e-13)
-    assert abs(drag_part(2, False) / exact - 1) > 1e-3
-    assert abs(drag_part(64, False) / exact - 1) < 1e-6
+    inputs = [0.2, 1.5, 0.0, 0.0]
+    exact = drag_rules[(8, True)](state, inputs)
+    assert abs(drag_rules[(2, False)](state, inputs) / exact - 1) > 1e-3
+    assert abs(drag_rules[(32, False)](state, inputs) / exact - 1) < 1e-6
 
 
 def test_oscillatory_drag_is_the_luhar_nepf_fit():

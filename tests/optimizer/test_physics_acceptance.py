@@ -50,9 +50,10 @@ def test_chordwise_worst_is_below_the_baseline(tmp_path):
     "lifts the plain feather to TR 1.38 ± 0.01 (baseline 0.99) with a slower upstroke than downstroke "
     "(t_up/t_down 1.45) and a long hold after the upstroke. Quasi-steady drag, which grows as v^2, rewards a "
     "slow recovery stroke (a rigid plate's drag-only TR is exactly t_up/t_down); the paper's plain feather "
-    "does not show it. The model has no wake: the water a fast stroke sets moving meets the next stroke; "
-    "bench/wake_memory.py shows wake laws fitted to sinusoidal plate data cut a rigid plate's best TR from 2.89 "
-    "to 1.25-1.50, the law undecided by those data (docs/model.md, 'What the model does not reproduce')",
+    "does not show it. The default model (wake = 'none') has no wake: the water a fast stroke sets moving meets "
+    "the next stroke. With the feather's wake option (laws fitted to oscillatory and steady plate data) the "
+    "slow-return stroke's TR falls from 1.30 to 0.98-1.02 (bench/wake_feathers.py), the law undecided by those "
+    "data (docs/model.md, 'Wake memory' and 'What the model does not reproduce')",
 )
 def test_plain_feather_gains_no_asymmetry_from_the_optimizer(tmp_path):
     best = _study(tmp_path, PLAIN, "max")
