@@ -32,7 +32,8 @@ Point the hardware blocks at it:
   modbus-tcp://HOST:PORT?unit={SERVO_UNIT}   (Servo)
 
 Shipped register maps: {', '.join(available_maps())}; a path to a TOML map works too.
-Stop with Ctrl-C."""
+`kill -USR1 PID` restarts both devices behind the "gateway" (new boot ids, tare and enable
+lost, TCP connections kept). Stop with Ctrl-C."""
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
