@@ -11,6 +11,7 @@ import zipfile
 from pathlib import Path, PurePosixPath
 
 import pytest
+from conftest import OSCILLATOR, make_scene  # at collection: the conftest of this folder
 from featherstar.cosim.errors import SceneError
 from featherstar.cosim.fmi.bounded_zip import ZipLimits, extract_bounded
 from featherstar.cosim.scene.data import scene_from_dict
@@ -182,7 +183,6 @@ def test_the_cache_quota_refuses_a_package_that_does_not_fit(tmp_path, cache, mo
 
 @pytest.fixture(scope="module")
 def exported(tmp_path_factory) -> Path:
-    from conftest import OSCILLATOR, make_scene
     from featherstar.cosim.ssp.export import export_ssp
 
     return export_ssp(make_scene(OSCILLATOR), tmp_path_factory.mktemp("ssp") / "osc.ssp")

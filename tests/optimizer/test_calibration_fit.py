@@ -27,4 +27,7 @@ def test_the_fit_finds_the_true_valley_from_recordings_where_the_coarse_start_mi
                             window_s=1.0)
     for name, value in calibration.values.items():
         assert value == pytest.approx(HIDDEN[name], rel=0.15), (name, value)
-    assert calibration.r_squared > 0.995
+    # The recordings predate the drag quadrature of issue 26 (drag on strips, 4 Gauss points): the
+    # plant that made them is structurally the old model, so the fit reaches R^2 0.9948 where it
+    # reached 0.9987; the coarse start's wrong valley gave 0.984.
+    assert calibration.r_squared > 0.99
