@@ -70,6 +70,8 @@ def check_zip(archive: zipfile.ZipFile, label: str, limits: ZipLimits = DEFAULT_
     if len(members) > limits.max_members:
         raise SceneError(f"{label}: holds {len(members)} members, over the {limits.max_members} an archive may hold")
     seen: set[str] = set()
+    files: dict[str, str] = {}   # a file's path -> its member name (a file may not also be a folder)
+    folders: dict[str, str] = {}
     total = 0
     for info in members:
         problem = _member_problem(info, limits)
@@ -79,6 +81,16 @@ def check_zip(archive: zipfile.ZipFile, label: str, limits: ZipLimits = DEFAULT_
         if key in seen:
             raise SceneError(f"{label}: archive member '{info.filename}' appears twice")
         seen.add(key)
+        new_folders = [str(parent) for parent in PurePosixPath(key).parents if str(parent) != "."]
+        if info.is_dir():
+            new_folders.append(key)
+        else:
+            files[key] = info.filename
+        for folder in new_folders:
+            folders.setdefault(folder, info.filename)
+        for clash in [f for f in new_folders if f in files] + ([] if info.is_dir() or key not in folders else [key]):
+            raise SceneError(f"{label}: archive member '{files[clash]}' is a file where member "
+                             f"'{folders[clash]}' needs a folder")
         total += info.file_size
         if total > limits.max_total_bytes:
             raise SceneError(f"{label}: unpacks to more than {_size(limits.max_total_bytes)} (the bound of one "
