@@ -100,8 +100,10 @@ def claims(data: Mapping) -> list[dict]:
     if _finite(plain_tr) and plain_tr > 1.15:
         plain_note += (" Known model gap, not forced: quasi-steady drag grows as v², so a slow upstroke and a fast "
                        "downstroke give net thrust (a rigid plate's drag-only TR is exactly t_up/t_down); the "
-                       "paper's plain feather does not show it. The model has no wake: the water the fast stroke "
-                       "sets moving, which the next stroke meets (docs/model.md; strict xfail in "
+                       "paper's plain feather does not show it. The default model has no wake: the water the fast "
+                       "stroke sets moving, which the next stroke meets; under the feather's `wake` option (three "
+                       "laws fitted to plate data) the slow-return stroke's TR falls from 1.30 to 0.98-1.02, the "
+                       "law undecided by those data (docs/model.md; strict xfail in "
                        "tests/optimizer/test_physics_acceptance.py).")
     rows.append(_claim("plain_optimized", "plain feather, best controller: no useful asymmetric thrust",
                        "Sec. III-D, Fig. 8", "TR ≲ 1", plain_tr, "", (0.0, 1.15), plain_note))
