@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from .run_figure import run_figure
 from ..jsonable import json_safe
 
 SUMMARY_ROWS = (
@@ -22,7 +23,10 @@ SUMMARY_ROWS = (
 
 
 def summary_table(summary: dict[str, Any]) -> str:
+    """The console summary; an incomplete run says so on its first line, before any number."""
     lines = [f"scene: {summary.get('scene', '?')}"]
+    if summary.get("incomplete_reason"):
+        lines.insert(0, f"INCOMPLETE (not a result): {summary['incomplete_reason']}")
     for key, label, fmt, scale, unit in SUMMARY_ROWS:
         if key not in summary:
             continue
@@ -160,61 +164,5 @@ def _cell(value: Any) -> str:
 
 
 def plot_run(result: Any, path: str | Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    sc = result.scene
-    t = result.time
-    thrust_name, angle_name = sc.metrics.thrust, sc.metrics.angle
-    has_speed = bool(sc.metrics.position or sc.metrics.speed)
-    n_rows = 3 + (1 if has_speed else 0)
-    fig, axes = plt.subplots(n_rows, 1, figsize=(8, 2.4 * n_rows), constrained_layout=True)
-    try:
-        s = result.summary
-        title = f"{sc.name}: TR = {s.get('thrust_ratio', float('nan')):.3f}, mean thrust = " \
-                f"{1e3 * s.get('mean_thrust_N', float('nan')):.2f} mN"
-        if "mean_speed_m_s" in s:
-            title += f", mean speed = {1e2 * s['mean_speed_m_s']:.2f} cm/s"
-        fig.suptitle(title)
-        ax = axes[0]
-        if thrust_name in result.signals:
-            thrust = result.signals[thrust_name]
-            ax.plot(t, 1e3 * thrust, color="C0", lw=0.8, label="thrust")
-            ax.axhline(0, color="k", lw=0.5)
-            ax.set_ylabel("thrust (mN)")
-            if angle_name in result.signals:
-                ax2 = ax.twinx()
-                ax2.plot(t, np.degrees(result.signals[angle_name]), color="C3", lw=0.8, alpha=0.7)
-                ax2.set_ylabel("root angle (°)", color="C3")
-            if "window_s" in s:
-                ax.axvspan(*s["window_s"], color="0.9", zorder=-1)
-            dt = np.diff(t)
-            integ = np.concatenate([[0.0], np.cumsum(0.5 * (thrust[1:] + thrust[:-1]) * dt)])
-            axes[1].plot(t, 1e3 * integ, color="C0")
-            axes[1].set_ylabel("∫ thrust dt (mN·s)")
-            axes[1].axhline(0, color="k", lw=0.5)
-            per = s.get("per_period_thrust_ratio") or []
-            if per:
-                axes[2].bar(np.arange(1, len(per) + 1), per, color="C0")
-                axes[2].axhline(s.get("thrust_ratio", np.nan), color="C1", label="window TR")
-                axes[2].axhline(1.0, color="k", lw=0.5)
-                axes[2].set_xlabel("period in the metric window")
-                axes[2].legend(loc="lower right")
-            axes[2].set_ylabel("TR")
-        axes[1].set_xlabel("time (s)")
-        axes[0].set_xlabel("time (s)")
-        if has_speed:
-            ax = axes[3]
-            if sc.metrics.position in result.signals:
-                ax.plot(t, 1e2 * result.signals[sc.metrics.position], color="C2")
-                ax.set_ylabel("body position (cm)")
-            if sc.metrics.speed in result.signals:
-                ax2 = ax.twinx()
-                ax2.plot(t, 1e2 * result.signals[sc.metrics.speed], color="C4", lw=0.6)
-                ax2.set_ylabel("speed (cm/s)", color="C4")
-            ax.set_xlabel("time (s)")
-        fig.savefig(path, dpi=110, format="png")
-    finally:
-        plt.close(fig)
+    """The run's figure (featherstar.cosim.swimmer.run_figure) as a PNG at `path`."""
+    run_figure(result).savefig(path, dpi=110, format="png")
