@@ -34,7 +34,7 @@ def progress_figure(
     for ax, name in zip(axes[1:], names):
         ax.plot(iterations, [e["params"][name] for e in evaluations], "o", ms=4, color="tab:blue")
         ax.plot(iterations, [math.nan if e is None else e["params"][name] for e in estimates], "-", color="tab:orange")
-        ax.set_ylabel(name, fontsize=7)
+        ax.set_ylabel(label(name), fontsize=7)
     axes[-1].set_xlabel("iteration")
     if title:
         axes[0].set_title(title, fontsize=9)
@@ -77,12 +77,37 @@ def sweep_figure(table: Sequence[Mapping], metrics: Sequence[str], path: str | P
         rows = sorted((r for r in table if r["family"] == family), key=lambda r: r["ratio"])
         for row_index, metric in enumerate(metrics):
             ax = axes[row_index][column]
-            ax.plot([r["ratio"] for r in rows], [r[metric] for r in rows], "o-", ms=3)
-            ax.set_ylabel(f"max {metric}", fontsize=8)
+            values = [r[metric] for r in rows]
+            ax.plot([r["ratio"] for r in rows], values, "o-", ms=3)
+            if not any(isinstance(v, (int, float)) and math.isfinite(v) for v in values):
+                ax.text(0.5, 0.5, f"{label(metric)}: no finite value\n(undefined for every geometry; see the table)",
+                        ha="center", va="center", transform=ax.transAxes, fontsize=8)
+            ax.set_ylabel(f"max {label(metric)}", fontsize=8)
             ax.set_xlabel("WR = w / w_spine" if family == "chordwise" else "LR = l / l_root")
             ax.set_title(family, fontsize=9)
     fig.tight_layout()
     return _save(fig, path)
+
+
+#: Axis labels for the names the optimizer's tables use (a figure speaks to a reader, not to code).
+LABELS = {
+    "thrust_ratio": "TR", "mean_thrust_N": "mean thrust (N)", "mean_thrust_mN": "mean thrust (mN)",
+    "normalized_thrust": "normalized thrust T/T_ref", "mean_speed_m_s": "mean speed (m/s)",
+    "t_up_s": "t_up (s)", "t_hold_up_s": "t_hold_up (s)", "t_down_s": "t_down (s)", "t_hold_down_s": "t_hold_down (s)",
+    "period_s": "period (s)", "amplitude_deg": "amplitude, peak to peak (°)",
+    "log10_up_down": "log10 t_up/t_down", "log10_hold_up_down": "log10 t_hold_up/t_hold_down",
+    "log10_hold_move": "log10 holds/moves",
+}
+
+
+def label(name: str) -> str:
+    """A reader's label for a table column or search variable (units from the name's suffix)."""
+    if name in LABELS:
+        return LABELS[name]
+    for suffix, unit in (("_s", "s"), ("_deg", "°"), ("_rad", "rad"), ("_N", "N"), ("_m", "m")):
+        if name.endswith(suffix):
+            return f"{name[: -len(suffix)].replace('_', ' ')} ({unit})"
+    return name.replace("_", " ")
 
 
 def _sd(row: Mapping, key: str) -> float:
