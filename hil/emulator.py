@@ -165,7 +165,8 @@ def start_emulator(host: str = "127.0.0.1", port: int = 0,
 class EmulatorProcess(_Handle):
     """An emulator in a child process (`python -m featherstar.hil emulate`): kill() it like a device."""
 
-    _LISTENING = re.compile(r"listening on modbus-tcp://(\S+):(\d+)")
+    _LISTENING = re.compile(r"listening on (?:modbus-tcp://(\S+):(\d+)"
+                            r"|modbus-rtu://([^?\s]+)\?baudrate=(\d+))")
 
     def __init__(self, args: list[str], start_timeout_s: float = 20.0,
                  plant_parameters: Mapping[str, float] | None = None) -> None:
@@ -192,7 +193,11 @@ class EmulatorProcess(_Handle):
             errors = self._stderr.read()
             self.stop()
             raise HILError(f"emulator process did not start: {lines} {errors}")
-        self.host, self.port = match.group(1), int(match.group(2))
+        if match.group(3):
+            self.host, self.port = "", 0
+            self.rtu_path, self.baudrate = match.group(3), int(match.group(4))
+        else:
+            self.host, self.port = match.group(1), int(match.group(2))
 
     def stop(self) -> None:
         if self.proc.poll() is None:
@@ -219,15 +224,19 @@ def spawn_emulator(host: str = "127.0.0.1", port: int = 0,
                    servo_map: str | Path = "servo-default", *, noise_N: float = 0.01,
                    seed: int | None = None, plant: str = "flat-plate",
                    morphology: str = "chordwise", start_timeout_s: float = 20.0,
-                   plant_parameters: Mapping[str, float] | None = None) -> EmulatorProcess:
+                   plant_parameters: Mapping[str, float] | None = None,
+                   rtu: str | None = None) -> EmulatorProcess:
     """Run the emulator in a child process; returns once it listens (port 0 = any).
 
     `plant` is "flat-plate" (analytic, starts at once) or "fmu" (the servo and feather FMUs;
     the first start compiles them, so give it a longer `start_timeout_s`). `plant_parameters`
-    are hidden coefficients of the plant (see `featherstar emulate --plant-parameters`)."""
+    are hidden coefficients of the plant (see `featherstar emulate --plant-parameters`).
+    `rtu` (a tty path or "pty") serves Modbus RTU there at 115200 baud instead of TCP."""
     args = ["--host", host, "--port", str(port), "--loadcell-map", str(loadcell_map),
             "--servo-map", str(servo_map), "--noise-N", str(noise_N), "--plant", plant,
             "--morphology", morphology]
     if seed is not None:
         args += ["--seed", str(seed)]
+    if rtu is not None:
+        args += ["--rtu", rtu]
     return EmulatorProcess(args, start_timeout_s, plant_parameters)

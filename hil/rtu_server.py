@@ -21,7 +21,6 @@ open (`path` after start()).
 from __future__ import annotations
 
 import asyncio
-import errno
 import logging
 import os
 import termios
@@ -33,6 +32,7 @@ from .modbus_server import RateLimitedLog, Units, handle_pdu
 GAP_MIN_S = 0.02
 _MAX_ADU = 256                 # unit + 253-byte PDU + 2 CRC bytes
 _WRITES = (6, 16)
+_RETRY_S = 0.5              # after a read error (device gone)
 
 
 def _crc_table() -> list[int]:
@@ -90,13 +90,13 @@ class ModbusRtuServer:
         self.gap_s = gap_s if gap_s is not None else max(t35_s, GAP_MIN_S)
         self.log = RateLimitedLog()
         self.path = device if isinstance(device, str) else f"fd {device}"
-        self.frames = self.bad_crc = self.ignored = 0   # counted, for tests and the log
         self._fd = -1
         self._held_fds: list[int] = []    # fds kept open so a pty master never reads EIO
         self._owns_fd = False
         self._buffer = bytearray()
         self._resync = False              # after a bad frame: drop bytes until a silence
         self._silence: asyncio.TimerHandle | None = None
+        self._retry: asyncio.TimerHandle | None = None
         self._queue: asyncio.Queue[bytes] = asyncio.Queue()
         self._worker: asyncio.Task | None = None
 
@@ -142,8 +142,9 @@ class ModbusRtuServer:
     async def close(self) -> None:
         if self._fd >= 0:
             asyncio.get_running_loop().remove_reader(self._fd)
-        if self._silence is not None:
-            self._silence.cancel()
+        for timer in (self._silence, self._retry):
+            if timer is not None:
+                timer.cancel()
         if self._worker is not None:
             self._worker.cancel()
             await asyncio.gather(self._worker, return_exceptions=True)
@@ -157,9 +158,15 @@ class ModbusRtuServer:
         except BlockingIOError:
             return
         except OSError as exc:
-            if exc.errno == errno.EIO:   # pty whose last client closed: wait for the next
-                return
-            raise
+            # EIO: a pty whose last client closed, a USB adapter unplugged. The fd stays
+            # readable, so stop watching it for a while instead of spinning on the error.
+            self.log(logging.WARNING, f"{self.path}: {exc.strerror}; retrying in "
+                                      f"{_RETRY_S} s")
+            loop = asyncio.get_running_loop()
+            loop.remove_reader(self._fd)
+            self._retry = loop.call_later(_RETRY_S, loop.add_reader, self._fd,
+                                          self._on_readable)
+            return
         if not data:
             return
         loop = asyncio.get_running_loop()
@@ -200,7 +207,6 @@ class ModbusRtuServer:
     def _accept(self, adu: bytes) -> bool:
         """Queue a checked frame; False (and resynchronise) on a bad CRC."""
         if crc16(adu[:-2]) != int.from_bytes(adu[-2:], "little"):
-            self.bad_crc += 1
             self._discard(f"bad CRC in {adu.hex()}")
             return False
         self._queue.put_nowait(adu[:-2])
@@ -215,7 +221,6 @@ class ModbusRtuServer:
         while True:
             body = await self._queue.get()
             unit, pdu = body[0], body[1:]
-            self.frames += 1
             try:
                 if unit == 0:
                     if pdu[0] in _WRITES:
@@ -223,8 +228,7 @@ class ModbusRtuServer:
                             await handle_pdu(self.units, each, pdu, self.log)
                     continue
                 if unit not in self.units:
-                    self.ignored += 1      # another slave's request
-                    continue
+                    continue               # another slave's request
                 reply = frame(unit, await handle_pdu(self.units, unit, pdu, self.log))
                 os.write(self._fd, reply)
             except Exception as exc:   # one bad exchange must not take the line down
