@@ -110,8 +110,8 @@ def emulate(args: argparse.Namespace) -> int:
         check_port_free(args.host, args.port)
     elif not hasattr(termios, f"B{args.baudrate}"):
         raise HILError(f"--baudrate {args.baudrate}: not a standard serial speed")
-    elif args.rtu != "pty" and not os.path.exists(args.rtu):
-        raise HILError(f"--rtu {args.rtu}: no such device")
+    elif args.rtu != "pty":
+        check_serial_line(args.rtu)
     logging.basicConfig(level=logging.WARNING, format="%(asctime)s %(name)s: %(message)s")
     hidden = read_plant_parameters(args.plant_parameters, args.plant_set)
     if args.plant == "fmu":
@@ -147,8 +147,9 @@ def emulate(args: argparse.Namespace) -> int:
     except KeyboardInterrupt:
         pass
     except OSError as exc:   # the port was taken between the check and the bind
-        raise HILError(f"--host {args.host} --port {args.port}: cannot listen there "
-                       f"({exc.strerror or exc})") from None
+        where = f"--rtu {args.rtu}" if args.rtu is not None \
+            else f"--host {args.host} --port {args.port}"
+        raise HILError(f"{where}: cannot listen there ({exc.strerror or exc})") from None
     return 0
 
 
@@ -162,6 +163,20 @@ def check_port_free(host: str, port: int) -> None:
             if exc.errno == errno.EADDRINUSE else ""
         raise HILError(f"--host {host} --port {port}: cannot listen there "
                        f"({exc.strerror or exc}){hint}") from None
+
+
+def check_serial_line(path: str) -> None:
+    """Refuse a path that is not an openable tty before any work starts (the FMUs build)."""
+    try:
+        fd = os.open(path, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+    except OSError as exc:
+        raise HILError(f"--rtu {path}: cannot open ({exc.strerror}); a serial device such as "
+                       "/dev/ttyUSB0, or 'pty'") from None
+    try:
+        if not os.isatty(fd):
+            raise HILError(f"--rtu {path}: not a serial line (a tty such as /dev/ttyUSB0, or 'pty')")
+    finally:
+        os.close(fd)
 
 
 def is_loopback(host: str) -> bool:

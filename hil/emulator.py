@@ -1,4 +1,5 @@
-"""Serving the bench emulator (featherstar.hil.emulated_bench.Emulator) over Modbus TCP.
+"""Serving the bench emulator (featherstar.hil.emulated_bench.Emulator) over Modbus TCP
+(or RTU on a serial line: `serve_rtu`, `rtu=` of the starters).
 
 Use `start_emulator()` (background thread, in-process, supports fault injection) or
 `spawn_emulator()` (child process, can be killed like a real device) in tests and benches, and

@@ -16,6 +16,7 @@ from hypothesis import strategies as st
 from featherstar.cosim.scenes import load_scene
 from featherstar.cosim.swimmer.run import run_scene
 from featherstar.hil.blocks import LoadCell, Servo
+from featherstar.hil.cli import main as cli_main
 from featherstar.hil.emulator import spawn_emulator
 from featherstar.hil.errors import DeviceFault
 from featherstar.hil.hardware import split_url, with_hardware
@@ -199,3 +200,13 @@ def test_the_testbed_runs_over_rtu(make_emulator):
     thrust = result["loadcell_hw.thrust_N"]
     assert len(thrust) == stats["macro_steps"] + 1
     assert 1.0 < max(thrust) - min(thrust) < 29.4    # a flapping plate, within capacity
+
+
+@pytest.mark.parametrize("path, why", [("/dev/null", "not a serial line"),
+                                       ("/nonexistent/tty", "cannot open")])
+def test_emulate_refuses_a_path_that_is_no_serial_line_before_any_work(capsys, path, why):
+    with pytest.raises(SystemExit) as info:
+        cli_main(["emulate", "--rtu", path])      # default fmu plant: refused before the build
+    assert info.value.code == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"--rtu {path}: {why}" in err
