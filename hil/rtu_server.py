@@ -33,6 +33,8 @@ GAP_MIN_S = 0.02
 _MAX_ADU = 256                 # unit + 253-byte PDU + 2 CRC bytes
 _WRITES = (6, 16)
 _RETRY_S = 0.5              # after a read error (device gone)
+# A master waits for each answer; one flooding the line is dropped past this, not queued without end.
+_MAX_PENDING = 16
 
 
 def _crc_table() -> list[int]:
@@ -97,7 +99,7 @@ class ModbusRtuServer:
         self._resync = False              # after a bad frame: drop bytes until a silence
         self._silence: asyncio.TimerHandle | None = None
         self._retry: asyncio.TimerHandle | None = None
-        self._queue: asyncio.Queue[bytes] = asyncio.Queue()
+        self._queue: asyncio.Queue[bytes] = asyncio.Queue(_MAX_PENDING)
         self._worker: asyncio.Task | None = None
 
     async def start(self) -> str:
@@ -209,7 +211,11 @@ class ModbusRtuServer:
         if crc16(adu[:-2]) != int.from_bytes(adu[-2:], "little"):
             self._discard(f"bad CRC in {adu.hex()}")
             return False
-        self._queue.put_nowait(adu[:-2])
+        if self._queue.full():
+            self.log(logging.WARNING, f"{self.path}: {_MAX_PENDING} requests pending: "
+                                      f"{adu.hex()} dropped, no response")
+        else:
+            self._queue.put_nowait(adu[:-2])
         return True
 
     def _discard(self, why: str) -> None:

@@ -105,7 +105,7 @@ NOISE = st.one_of(st.binary(min_size=1, max_size=40),
                             st.integers(0, 63)))
 
 
-@settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(garbage=NOISE, cuts=st.sets(st.integers(1, 7), max_size=3))
 def test_after_any_line_noise_and_a_silence_a_request_split_anyhow_is_answered_once(line, garbage,
                                                                                     cuts):
@@ -210,3 +210,19 @@ def test_emulate_refuses_a_path_that_is_no_serial_line_before_any_work(capsys, p
     assert info.value.code == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and f"--rtu {path}: {why}" in err
+
+
+def test_a_flood_of_requests_is_answered_in_order_up_to_a_bound_and_the_line_survives(line):
+    _, fd = line
+    flood = b"".join(_read_request(2, 2, 2) for _ in range(200))
+    os.write(fd, flood)
+    replies = _exchange(fd, b"", None)
+    while True:                      # drain what the server answered, however many
+        more = _exchange(fd, b"", None)
+        if not more:
+            break
+        replies += more
+    n = len(replies) // 9
+    assert 16 <= n < 200 and len(replies) == 9 * n      # the bounded queue dropped the rest
+    assert all(replies[9 * i:9 * i + 3] == bytes([2, 3, 4]) for i in range(n))
+    assert len(_exchange(fd, _read_request(2, 2, 2), 9)) == 9
