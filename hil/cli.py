@@ -11,11 +11,13 @@ import ipaddress
 import logging
 import errno
 import math
+import os
 import signal
 import socket
 import sys
+import termios
 
-from .emulator import IDLE_TIMEOUT_S, LOADCELL_UNIT, SERVO_UNIT, Emulator, serve
+from .emulator import IDLE_TIMEOUT_S, LOADCELL_UNIT, SERVO_UNIT, Emulator, serve, serve_rtu
 from .errors import HILError
 from .plant import flat_plate_plant, fmu_plant_parameters, read_plant_parameters
 from .registers import available_maps, load_loadcell_map, load_servo_map
@@ -30,6 +32,10 @@ mean force since the previous one, at most the last 20 ms, as a sigma-delta conv
 Point the hardware blocks at it:
   modbus-tcp://HOST:PORT?unit={LOADCELL_UNIT}   (LoadCell)
   modbus-tcp://HOST:PORT?unit={SERVO_UNIT}   (Servo)
+
+With --rtu it serves Modbus RTU on a serial line instead (same units; --rtu pty makes a
+pseudo-terminal and prints the path to open):
+  modbus-rtu:///dev/ttyUSB0?baudrate=115200&unit={LOADCELL_UNIT}
 
 Shipped register maps: {', '.join(available_maps())}; a path to a TOML map works too.
 `kill -USR1 PID` restarts both devices behind the "gateway" (new boot ids, tare and enable
@@ -53,6 +59,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--port", type=int, default=5020,
                    help="TCP port; 0 picks a free one (default: %(default)s). The bound port is "
                         "printed on the first line of output")
+    p.add_argument("--rtu", default=None, metavar="PATH",
+                   help="serve Modbus RTU on this serial line (a tty, or the slave end of a pty) "
+                        "instead of TCP; 'pty' creates a pseudo-terminal pair and prints its path")
+    p.add_argument("--baudrate", type=int, default=115200,
+                   help="serial speed of --rtu, 8N1 (default: %(default)s)")
     p.add_argument("--loadcell-map", default="loadcell-float32-abcd", metavar="NAME",
                    help="load-cell register map, shipped name or TOML path "
                         "(default: %(default)s)")
@@ -95,7 +106,12 @@ def emulate(args: argparse.Namespace) -> int:
               "can read the load cell and move the emulated servo", file=sys.stderr)
     # Maps and the port first: a typo or a busy port must not wait for the FMUs to build.
     loadcell_map, servo_map = load_loadcell_map(args.loadcell_map), load_servo_map(args.servo_map)
-    check_port_free(args.host, args.port)
+    if args.rtu is None:
+        check_port_free(args.host, args.port)
+    elif not hasattr(termios, f"B{args.baudrate}"):
+        raise HILError(f"--baudrate {args.baudrate}: not a standard serial speed")
+    elif args.rtu != "pty":
+        check_serial_line(args.rtu)
     logging.basicConfig(level=logging.WARNING, format="%(asctime)s %(name)s: %(message)s")
     hidden = read_plant_parameters(args.plant_parameters, args.plant_set)
     if args.plant == "fmu":
@@ -107,8 +123,10 @@ def emulate(args: argparse.Namespace) -> int:
         plant = flat_plate_plant(hidden)
     emulator = Emulator(loadcell_map, servo_map, plant, noise_N=args.noise_N, seed=args.seed)
 
-    def ready(port: int) -> None:
-        print(f"featherstar emulate: listening on modbus-tcp://{args.host}:{port} "
+    def ready(where: int | str) -> None:
+        url = f"modbus-tcp://{args.host}:{where}" if args.rtu is None \
+            else f"modbus-rtu://{where}?baudrate={args.baudrate}"
+        print(f"featherstar emulate: listening on {url} "
               f"(load cell unit {LOADCELL_UNIT}: {emulator.loadcell_map.name}, "
               f"servo unit {SERVO_UNIT}: {emulator.servo_map.name})"
               + (f"; {len(hidden)} hidden plant coefficient(s) differ from the defaults" if hidden else ""),
@@ -118,16 +136,20 @@ def emulate(args: argparse.Namespace) -> int:
         # kill -USR1: both devices restart behind the gateway, connections kept (fault tests).
         asyncio.get_running_loop().add_signal_handler(
             signal.SIGUSR1, lambda: [emulator.reboot(d) for d in ("loadcell", "servo")])
-        await serve(emulator, args.host, args.port, asyncio.Event(), ready,
-                    idle_timeout_s=args.idle_timeout_s)
+        if args.rtu is not None:
+            await serve_rtu(emulator, args.rtu, args.baudrate, asyncio.Event(), ready)
+        else:
+            await serve(emulator, args.host, args.port, asyncio.Event(), ready,
+                        idle_timeout_s=args.idle_timeout_s)
 
     try:
         asyncio.run(run())
     except KeyboardInterrupt:
         pass
     except OSError as exc:   # the port was taken between the check and the bind
-        raise HILError(f"--host {args.host} --port {args.port}: cannot listen there "
-                       f"({exc.strerror or exc})") from None
+        where = f"--rtu {args.rtu}" if args.rtu is not None \
+            else f"--host {args.host} --port {args.port}"
+        raise HILError(f"{where}: cannot listen there ({exc.strerror or exc})") from None
     return 0
 
 
@@ -141,6 +163,20 @@ def check_port_free(host: str, port: int) -> None:
             if exc.errno == errno.EADDRINUSE else ""
         raise HILError(f"--host {host} --port {port}: cannot listen there "
                        f"({exc.strerror or exc}){hint}") from None
+
+
+def check_serial_line(path: str) -> None:
+    """Refuse a path that is not an openable tty before any work starts (the FMUs build)."""
+    try:
+        fd = os.open(path, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+    except OSError as exc:
+        raise HILError(f"--rtu {path}: cannot open ({exc.strerror}); a serial device such as "
+                       "/dev/ttyUSB0, or 'pty'") from None
+    try:
+        if not os.isatty(fd):
+            raise HILError(f"--rtu {path}: not a serial line (a tty such as /dev/ttyUSB0, or 'pty')")
+    finally:
+        os.close(fd)
 
 
 def is_loopback(host: str) -> bool:

@@ -1,4 +1,5 @@
-"""Serving the bench emulator (featherstar.hil.emulated_bench.Emulator) over Modbus TCP.
+"""Serving the bench emulator (featherstar.hil.emulated_bench.Emulator) over Modbus TCP
+(or RTU on a serial line: `serve_rtu`, `rtu=` of the starters).
 
 Use `start_emulator()` (background thread, in-process, supports fault injection) or
 `spawn_emulator()` (child process, can be killed like a real device) in tests and benches, and
@@ -23,6 +24,7 @@ from typing import Callable, Mapping
 from .emulated_bench import IDLE_TIMEOUT_S, LOADCELL_UNIT, SERVO_UNIT, Emulator
 from .errors import HILError
 from .modbus_server import ModbusTcpServer
+from .rtu_server import ModbusRtuServer
 from .plant import Plant
 from .registers import load_loadcell_map, load_servo_map
 
@@ -36,6 +38,21 @@ async def serve(emulator: Emulator, host: str, port: int, stop: asyncio.Event,
     ticker = asyncio.create_task(_keep_time(emulator, stop))
     try:
         on_ready(bound)
+        await stop.wait()
+    finally:
+        ticker.cancel()
+        await server.close()
+
+
+async def serve_rtu(emulator: Emulator, device: str | int, baudrate: int, stop: asyncio.Event,
+                    on_ready: Callable[[str], None]) -> None:
+    """Serve Modbus RTU on `device` (a tty path, an open fd, or "pty") until `stop` is set;
+    `on_ready(path clients open)` once answering."""
+    server = ModbusRtuServer(emulator.units(), device, baudrate=baudrate)
+    path = await server.start()
+    ticker = asyncio.create_task(_keep_time(emulator, stop))
+    try:
+        on_ready(path)
         await stop.wait()
     finally:
         ticker.cancel()
@@ -57,14 +74,21 @@ async def _keep_time(emulator: Emulator, stop: asyncio.Event) -> None:
 class _Handle(abc.ABC):
     host: str
     port: int
+    rtu_path: str = ""      # the tty clients open when served over RTU
+    baudrate: int = 115200
+
+    def _url(self, unit: int) -> str:
+        if self.rtu_path:
+            return f"modbus-rtu://{self.rtu_path}?baudrate={self.baudrate}&unit={unit}"
+        return f"modbus-tcp://{self.host}:{self.port}?unit={unit}"
 
     @property
     def loadcell_url(self) -> str:
-        return f"modbus-tcp://{self.host}:{self.port}?unit={LOADCELL_UNIT}"
+        return self._url(LOADCELL_UNIT)
 
     @property
     def servo_url(self) -> str:
-        return f"modbus-tcp://{self.host}:{self.port}?unit={SERVO_UNIT}"
+        return self._url(SERVO_UNIT)
 
     def __enter__(self) -> _Handle:
         return self
@@ -80,9 +104,11 @@ class EmulatorThread(_Handle):
     """An emulator served from a background thread of this process."""
 
     def __init__(self, emulator: Emulator, host: str, port: int, *,
-                 idle_timeout_s: float = IDLE_TIMEOUT_S) -> None:
+                 idle_timeout_s: float = IDLE_TIMEOUT_S, rtu: str | int | None = None,
+                 baudrate: int = 115200) -> None:
         self.emulator, self.host, self.port = emulator, host, port
         self.idle_timeout_s = idle_timeout_s
+        self.rtu, self.baudrate = rtu, baudrate     # RTU instead of TCP when rtu is given
         self._ready = threading.Event()
         self._error: BaseException | None = None
         self._loop = asyncio.new_event_loop()
@@ -96,9 +122,18 @@ class EmulatorThread(_Handle):
         def ready(port: int) -> None:
             self.port = port
             self._ready.set()
+        def rtu_ready(path: str) -> None:
+            if not isinstance(self.rtu, int):    # an fd's far end has a path only its opener knows
+                self.rtu_path = path
+            self._ready.set()
         try:
-            self._loop.run_until_complete(serve(self.emulator, self.host, self.port, self._stop,
-                                                ready, idle_timeout_s=self.idle_timeout_s))
+            if self.rtu is not None:
+                self._loop.run_until_complete(serve_rtu(self.emulator, self.rtu, self.baudrate,
+                                                        self._stop, rtu_ready))
+            else:
+                self._loop.run_until_complete(serve(self.emulator, self.host, self.port,
+                                                    self._stop, ready,
+                                                    idle_timeout_s=self.idle_timeout_s))
         except BaseException as exc:   # reported to the starting thread
             self._error = exc
             self._ready.set()
@@ -118,17 +153,21 @@ def start_emulator(host: str = "127.0.0.1", port: int = 0,
                    loadcell_map: str | Path = "loadcell-float32-abcd",
                    servo_map: str | Path = "servo-default", *, noise_N: float = 0.01,
                    seed: int | None = None, plant: Plant | None = None,
-                   idle_timeout_s: float = IDLE_TIMEOUT_S) -> EmulatorThread:
-    """Serve a new emulator in a background thread; returns once it listens (port 0 = any)."""
+                   idle_timeout_s: float = IDLE_TIMEOUT_S,
+                   rtu: str | int | None = None) -> EmulatorThread:
+    """Serve a new emulator in a background thread; returns once it listens (port 0 = any).
+    With `rtu` (a tty path, an open fd such as a pty master, or "pty") it serves Modbus RTU
+    there instead of TCP."""
     emulator = Emulator(load_loadcell_map(loadcell_map), load_servo_map(servo_map), plant,
                         noise_N=noise_N, seed=seed)
-    return EmulatorThread(emulator, host, port, idle_timeout_s=idle_timeout_s)
+    return EmulatorThread(emulator, host, port, idle_timeout_s=idle_timeout_s, rtu=rtu)
 
 
 class EmulatorProcess(_Handle):
     """An emulator in a child process (`python -m featherstar.hil emulate`): kill() it like a device."""
 
-    _LISTENING = re.compile(r"listening on modbus-tcp://(\S+):(\d+)")
+    _LISTENING = re.compile(r"listening on (?:modbus-tcp://(\S+):(\d+)"
+                            r"|modbus-rtu://([^?\s]+)\?baudrate=(\d+))")
 
     def __init__(self, args: list[str], start_timeout_s: float = 20.0,
                  plant_parameters: Mapping[str, float] | None = None) -> None:
@@ -155,7 +194,11 @@ class EmulatorProcess(_Handle):
             errors = self._stderr.read()
             self.stop()
             raise HILError(f"emulator process did not start: {lines} {errors}")
-        self.host, self.port = match.group(1), int(match.group(2))
+        if match.group(3):
+            self.host, self.port = "", 0
+            self.rtu_path, self.baudrate = match.group(3), int(match.group(4))
+        else:
+            self.host, self.port = match.group(1), int(match.group(2))
 
     def stop(self) -> None:
         if self.proc.poll() is None:
@@ -182,15 +225,19 @@ def spawn_emulator(host: str = "127.0.0.1", port: int = 0,
                    servo_map: str | Path = "servo-default", *, noise_N: float = 0.01,
                    seed: int | None = None, plant: str = "flat-plate",
                    morphology: str = "chordwise", start_timeout_s: float = 20.0,
-                   plant_parameters: Mapping[str, float] | None = None) -> EmulatorProcess:
+                   plant_parameters: Mapping[str, float] | None = None,
+                   rtu: str | None = None) -> EmulatorProcess:
     """Run the emulator in a child process; returns once it listens (port 0 = any).
 
     `plant` is "flat-plate" (analytic, starts at once) or "fmu" (the servo and feather FMUs;
     the first start compiles them, so give it a longer `start_timeout_s`). `plant_parameters`
-    are hidden coefficients of the plant (see `featherstar emulate --plant-parameters`)."""
+    are hidden coefficients of the plant (see `featherstar emulate --plant-parameters`).
+    `rtu` (a tty path or "pty") serves Modbus RTU there at 115200 baud instead of TCP."""
     args = ["--host", host, "--port", str(port), "--loadcell-map", str(loadcell_map),
             "--servo-map", str(servo_map), "--noise-N", str(noise_N), "--plant", plant,
             "--morphology", morphology]
     if seed is not None:
         args += ["--seed", str(seed)]
+    if rtu is not None:
+        args += ["--rtu", rtu]
     return EmulatorProcess(args, start_timeout_s, plant_parameters)

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 from typing import Any, Mapping
-from urllib.parse import parse_qsl, urlencode, urlsplit, urlunsplit
+from urllib.parse import parse_qsl, urlencode, urlsplit
 
 from ..cosim.errors import SceneError
 from ..cosim.scene.data import Scene, scene_from_dict
@@ -68,7 +68,10 @@ def split_url(slot: str, url: str) -> tuple[str, dict[str, Any]]:
         if key in options:
             raise SceneError(f"--hardware {slot}: {key} given twice")
         options[key] = seconds
-    return urlunsplit(parts._replace(query=urlencode(device))), options
+    # Not urlunsplit: it drops the '//' of an empty host, turning modbus-rtu:///dev/ttyUSB0 into
+    # modbus-rtu:/dev/ttyUSB0, which no longer parses.
+    query = urlencode(device)
+    return f"{parts.scheme}://{parts.netloc}{parts.path}" + (f"?{query}" if query else ""), options
 
 
 def parse_hardware(items: list[str] | None) -> dict[str, str]:

@@ -53,6 +53,10 @@ class UnitSpace:
                    for a in range(address, address + count))
 
 
+# Unit id -> (its register spaces, its handler): what a server (TCP or RTU) answers for.
+Units = dict[int, tuple[UnitSpace, Handler]]
+
+
 class RateLimitedLog:
     """At most `burst` lines per `window_s`, each at most `max_chars`; the rest are counted
     and reported once the window has passed."""
@@ -83,7 +87,7 @@ def exception_pdu(function_code: int, code: int) -> bytes:
 class ModbusTcpServer:
     """Serve `units` (unit id -> (UnitSpace, Handler)) on host:port until close()."""
 
-    def __init__(self, units: dict[int, tuple[UnitSpace, Handler]], host: str, port: int, *,
+    def __init__(self, units: Units, host: str, port: int, *,
                  idle_timeout_s: float = 30.0) -> None:
         self.units, self.host, self.port = units, host, port
         self.idle_timeout_s = idle_timeout_s
@@ -128,10 +132,9 @@ class ModbusTcpServer:
                 except asyncio.TimeoutError:
                     self.log(logging.INFO, f"{peer}: idle for {self.idle_timeout_s} s: closed")
                     return
-                reply = await self._answer(unit, pdu)
-                if reply is not None:
-                    writer.write(struct.pack(">HHHB", tid, 0, len(reply) + 1, unit) + reply)
-                    await writer.drain()
+                reply = await handle_pdu(self.units, unit, pdu, self.log)
+                writer.write(struct.pack(">HHHB", tid, 0, len(reply) + 1, unit) + reply)
+                await writer.drain()
         except (asyncio.IncompleteReadError, ConnectionError):
             return      # the client went away: nothing to answer
         except Exception as exc:   # one broken connection must not take the server down
@@ -140,30 +143,34 @@ class ModbusTcpServer:
             self._tasks.discard(task)
             writer.close()
 
-    async def _answer(self, unit: int, pdu: bytes) -> bytes | None:
-        fc = pdu[0]
-        if unit not in self.units:
-            return exception_pdu(fc, GATEWAY_TARGET_FAILED)
-        space_map, handler = self.units[unit]
-        parsed = parse_request(pdu)
-        if isinstance(parsed, int):
-            return exception_pdu(fc, parsed)
-        space, address, count, values = parsed
-        if not space_map.check(space, address, count, write=values is not None):
-            return exception_pdu(fc, ILLEGAL_ADDRESS)
-        try:
-            result = await handler(fc, space, address, count, values)
-        except Exception as exc:   # a device bug is a device failure, never a dead server
-            self.log(logging.ERROR, f"unit {unit} fc {fc}: {type(exc).__name__}: {exc}")
+
+async def handle_pdu(units: Units, unit: int, pdu: bytes,
+                     report: Callable[[int, str], None]) -> bytes:
+    """The response PDU to request `pdu` for `unit`, whatever the transport (TCP and RTU
+    share it); `report(level, message)` hears device bugs."""
+    fc = pdu[0]
+    if unit not in units:
+        return exception_pdu(fc, GATEWAY_TARGET_FAILED)
+    space_map, handler = units[unit]
+    parsed = parse_request(pdu)
+    if isinstance(parsed, int):
+        return exception_pdu(fc, parsed)
+    space, address, count, values = parsed
+    if not space_map.check(space, address, count, write=values is not None):
+        return exception_pdu(fc, ILLEGAL_ADDRESS)
+    try:
+        result = await handler(fc, space, address, count, values)
+    except Exception as exc:   # a device bug is a device failure, never a dead server
+        report(logging.ERROR, f"unit {unit} fc {fc}: {type(exc).__name__}: {exc}")
+        return exception_pdu(fc, DEVICE_FAILURE)
+    if isinstance(result, int):
+        return exception_pdu(fc, result)
+    if fc in (3, 4):
+        registers = list(result or [])
+        if len(registers) != count:
             return exception_pdu(fc, DEVICE_FAILURE)
-        if isinstance(result, int):
-            return exception_pdu(fc, result)
-        if fc in (3, 4):
-            registers = list(result or [])
-            if len(registers) != count:
-                return exception_pdu(fc, DEVICE_FAILURE)
-            return struct.pack(f">BB{count}H", fc, 2 * count, *registers)
-        return pdu[:5]   # FC6 echoes the request; FC16 answers address and quantity
+        return struct.pack(f">BB{count}H", fc, 2 * count, *registers)
+    return pdu[:5]   # FC6 echoes the request; FC16 answers address and quantity
 
 
 def parse_request(pdu: bytes) -> tuple[str, int, int, list[int] | None] | int:
