@@ -14,26 +14,15 @@ from featherstar.cosim.scene.data import scene_from_dict
 from featherstar.cosim.scene.graph import plan
 from featherstar.cosim.swimmer.run import run_scene
 from featherstar.cosim.swimmer.stroke import Stroke, root_motion
+from lag_fmu import build_lag_fmu
 from scipy.integrate import solve_ivp
-
-SOURCE = Path(__file__).parent / "fmi2_lag"
 
 
 @pytest.fixture(scope="module")
 def lag_fmu(tmp_path_factory) -> Path:
     if shutil.which("gcc") is None:
         pytest.skip("gcc is needed to build the FMI 2.0 test FMU")
-    work = tmp_path_factory.mktemp("fmi2")
-    binaries = work / "binaries" / "linux64"
-    binaries.mkdir(parents=True)
-    include = Path(fmpy.__file__).parent / "c-code"
-    subprocess.run(["gcc", "-O2", "-shared", "-fPIC", f"-I{include}", str(SOURCE / "lag.c"),
-                    "-o", str(binaries / "lag.so"), "-lm"], check=True)
-    fmu = work / "lag.fmu"
-    with zipfile.ZipFile(fmu, "w") as z:
-        z.write(SOURCE / "modelDescription.xml", "modelDescription.xml")
-        z.write(binaries / "lag.so", "binaries/linux64/lag.so")
-    return fmu
+    return build_lag_fmu(tmp_path_factory.mktemp("fmi2"))
 
 
 def _scene(fmu: Path, coupling: str, **master):
