@@ -32,6 +32,13 @@ MODELS: dict[str, Callable[[], Model]] = {
 }
 
 
+def build_options(kind: str) -> tuple[str, ...]:
+    """The build options of model `kind` (those that change its equations' structure)."""
+    if kind not in _BUILDERS:
+        raise ModelError(f"unknown model kind '{kind}'; known: {', '.join(_BUILDERS)}")
+    return _BUILDERS[kind][1]
+
+
 def build_model(kind: str, options: Mapping[str, object] | None = None) -> Model:
     """The model of `kind` ("feather", "servo", "robot", "stroke_source", "constant_source")
     with the given build options."""

@@ -318,14 +318,15 @@ class PythonKind(BlockKind):
 # --- fmu ----------------------------------------------------------------------------------------
 
 def _catalog_options(kind: str) -> tuple[str, ...]:
+    """A catalog model's build options; none for a "pkg.module:function" model."""
     try:
         from ...fmu_src import catalog
     except ImportError:
         return ()
-    if hasattr(catalog, "build_options"):
+    try:
         return tuple(catalog.build_options(kind))
-    builders = getattr(catalog, "_BUILDERS", {})
-    return tuple(builders[kind][1]) if kind in builders else ()
+    except FeatherstarError:   # not a catalog kind
+        return ()
 
 
 @functools.lru_cache(maxsize=64)

@@ -11,6 +11,7 @@ import argparse
 import json
 from pathlib import Path
 
+from ...fmu_src.catalog import build_options
 from ..errors import OptimizerError
 from ..log import dumps
 from ..options import command, number, one_line_errors, out_dir
@@ -98,7 +99,7 @@ def write_calibration(result: Calibration, out: Path, *, runs: list[str], scene:
     # The scene's own feather parameters, the feather.* overrides, then the calibrated ones.
     merged = {**feather_block(scene).get("parameters", {}),
               **{k.split(".", 1)[1]: v for k, v in overrides.items() if k.startswith("feather.")
-                 and k.split(".", 1)[1] not in ("morphology", "n_units", "root_support")},
+                 and k.split(".", 1)[1] not in build_options("feather")},
               **{k.split(".", 1)[1]: v for k, v in result.parameter_set().items()}}
     inline = ", ".join(f"{k} = {v:.6g}" if isinstance(v, (int, float)) else f'{k} = "{v}"' for k, v in merged.items())
     paths[2].write_text(f"# calibrated feather of scene '{scene}' ({', '.join(Path(r).name for r in runs)}):\n"

@@ -46,9 +46,10 @@ from scipy.optimize import least_squares
 
 from ...cosim.errors import StepError
 from ...cosim.scene.data import scene_from_dict
+from ...cosim.scene.specs import parse_value
 from ...cosim.scenes import load_scene
 from ...cosim.swimmer.run import run_scene
-from ...fmu_src.catalog import build_model
+from ...fmu_src.catalog import build_model, build_options
 from ..errors import OptimizerError
 from .recordings import Recording, check_same_stroke
 
@@ -141,10 +142,9 @@ def feather_block(scene: str) -> dict[str, Any]:
 def feather_model(block: Mapping[str, Any], overrides: Mapping[str, Any]):
     """The feather model the block builds with the feather.* overrides (morphology, n_units...)."""
     options = dict(block.get("options", {}))
-    for key in ("morphology", "n_units", "root_support"):
+    for key in build_options("feather"):   # every build option (wake, drag rule...), none dropped
         if f"feather.{key}" in overrides:
-            value = overrides[f"feather.{key}"]
-            options[key] = int(value) if key == "n_units" else value
+            options[key] = parse_value(overrides[f"feather.{key}"])
     return build_model("feather", options)
 
 

@@ -233,3 +233,18 @@ def test_a_damaged_recording_is_read_or_refused_with_one_line(tmp_path, at, garb
         assert "\n" not in str(exc) and str(damaged) in str(exc)
     else:
         assert len(recording.time_s) >= 8 and np.all(np.isfinite(recording.thrust_N))
+
+
+def test_every_feather_build_option_reaches_the_calibrated_model():
+    """A scene calibrated with --set feather.wake=self (or a drag rule) is fitted with that model,
+    not silently with the defaults (every catalog build option is passed on)."""
+    from featherstar.fmu_src.catalog import build_options
+    from featherstar.optimizer.calibration.fit import feather_block, feather_model
+
+    block = feather_block("testbed")
+    assert {"wake", "drag_points", "n_units"} <= set(build_options("feather"))
+    model = feather_model(block, {"feather.morphology": "plain", "feather.wake": "self", "feather.drag_points": "3",
+                                  "feather.n_units": "4"})
+    assert dict(model.options)["wake"] == "self" and dict(model.options)["drag_points"] == 3
+    assert dict(model.options)["n_units"] == 4
+    assert "wake_drag_coeff" in {p.name for p in model.parameters}
