@@ -32,6 +32,18 @@ MG996R_RATE_RAD_S = 6.2      # 0.17 s / 60 deg at 4.8 V
 _SAFE_RETRY_PAUSE_S = 0.05   # between safe-position attempts: a rebooting device needs time
 
 
+def _session_and_read_plan(device_map, spans: list[tuple[int, int]]) -> tuple[SessionWatch | None, ReadPlan]:
+    """The registers a device block reads every cycle: its own `spans`, the status register and
+    the session registers when the map has them, in one read plan; and the watch of the session."""
+    spans = list(spans)
+    if device_map.status is not None:
+        spans.append((device_map.status.address, 1))
+    session = None if device_map.session is None else SessionWatch(device_map.session)
+    if device_map.session is not None:
+        spans += device_map.session.spans()
+    return session, ReadPlan.build(device_map.read_function, spans)
+
+
 class LoadCell(ModbusDevice):
     """A load-cell transmitter; output `thrust_N`, the tared reading in N, positive up.
 
@@ -71,13 +83,7 @@ class LoadCell(ModbusDevice):
             "thrust_N": Port("thrust_N", "N", "tared load-cell reading, positive up"),
             "t_read_s": Port("t_read_s", "s", "run time at which the reading was taken, on the "
                                               "PC's clock (the first step's read on time)")}
-        spans = self.map.value.spans()
-        if self.map.status is not None:
-            spans.append((self.map.status.address, 1))
-        self._session = None if self.map.session is None else SessionWatch(self.map.session)
-        if self.map.session is not None:
-            spans += self.map.session.spans()
-        self._plan = ReadPlan.build(self.map.read_function, spans)
+        self._session, self._plan = _session_and_read_plan(self.map, self.map.value.spans())
         self.status = Status()
         self._thrust_N = math.nan
         self._last_raw: tuple[int, ...] | None = None
@@ -212,13 +218,8 @@ class Servo(ModbusDevice):
             "angle_rad": Port("angle_rad", "rad", f"servo angle ({self.estimate_source})"),
             "rate_rad_s": Port("rate_rad_s", "rad/s", "finite-difference angular rate"),
             "accel_rad_s2": Port("accel_rad_s2", "rad/s2", "finite-difference angular accel")}
-        spans = self.map.position.spans() if self.map.position is not None else []
-        if self.map.status is not None:
-            spans.append((self.map.status.address, 1))
-        self._session = None if self.map.session is None else SessionWatch(self.map.session)
-        if self.map.session is not None:
-            spans += self.map.session.spans()
-        self._plan = ReadPlan.build(self.map.read_function, spans)
+        self._session, self._plan = _session_and_read_plan(
+            self.map, self.map.position.spans() if self.map.position is not None else [])
         self._target_rad = self._command_rad = safe_rad
         self._angle_rad, self._rate_rad_s, self._accel_rad_s2 = safe_rad, 0.0, 0.0
         self._t_read: float | None = None

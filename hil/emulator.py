@@ -19,7 +19,7 @@ import tempfile
 import threading
 import time
 from pathlib import Path
-from typing import Callable, Mapping
+from typing import Any, Callable, Mapping
 
 from .emulated_bench import IDLE_TIMEOUT_S, LOADCELL_UNIT, SERVO_UNIT, Emulator
 from .errors import HILError
@@ -33,26 +33,24 @@ async def serve(emulator: Emulator, host: str, port: int, stop: asyncio.Event,
                 on_ready: Callable[[int], None], *,
                 idle_timeout_s: float = IDLE_TIMEOUT_S) -> None:
     """Serve until `stop` is set; `on_ready(bound_port)` once listening."""
-    server = ModbusTcpServer(emulator.units(), host, port, idle_timeout_s=idle_timeout_s)
-    bound = await server.start()
-    ticker = asyncio.create_task(_keep_time(emulator, stop))
-    try:
-        on_ready(bound)
-        await stop.wait()
-    finally:
-        ticker.cancel()
-        await server.close()
+    await _serve_until(emulator, ModbusTcpServer(emulator.units(), host, port, idle_timeout_s=idle_timeout_s),
+                       stop, on_ready)
 
 
 async def serve_rtu(emulator: Emulator, device: str | int, baudrate: int, stop: asyncio.Event,
                     on_ready: Callable[[str], None]) -> None:
     """Serve Modbus RTU on `device` (a tty path, an open fd, or "pty") until `stop` is set;
     `on_ready(path clients open)` once answering."""
-    server = ModbusRtuServer(emulator.units(), device, baudrate=baudrate)
-    path = await server.start()
+    await _serve_until(emulator, ModbusRtuServer(emulator.units(), device, baudrate=baudrate), stop, on_ready)
+
+
+async def _serve_until(emulator: Emulator, server: Any, stop: asyncio.Event, on_ready: Callable[[Any], None]) -> None:
+    """Start `server` (TCP or RTU: `start()` returns where clients connect), keep the emulator's
+    time while it answers, close it once `stop` is set."""
+    where = await server.start()
     ticker = asyncio.create_task(_keep_time(emulator, stop))
     try:
-        on_ready(path)
+        on_ready(where)
         await stop.wait()
     finally:
         ticker.cancel()
