@@ -78,15 +78,19 @@ class MixedCoupling:
         """Every input and output at t, with the ODE's state at t (a communication point); ODE
         units with discrete inputs that changed take them in event mode there."""
         group = self.group
-        group.ops = self.all_ops
-        group.set_point(t, group.cv.y_address)
-        group.ops = self.rhs_ops
+        self._everything_at(t)
         if group.discrete_units and group.discrete_inputs_pending(t):
             if group.handle_event(t):
                 self.ended = (group.terminated_by, t)
-            group.ops = self.all_ops
-            group.set_point(t, group.cv.y_address)
-            group.ops = self.rhs_ops
+            self._everything_at(t)
+
+    def _everything_at(self, t: float) -> None:
+        """Every unit's inputs and outputs at t, the stepped side's included, from the ODE's
+        state (the right-hand side's schedule leaves the stepped side out)."""
+        group = self.group
+        group.ops = self.all_ops
+        group.set_point(t, group.cv.y_address)
+        group.ops = self.rhs_ops
 
     def input_changed(self, t: float) -> None:
         """An input written from outside jumped at t: consistent values, and CVODE restarts."""
@@ -167,9 +171,7 @@ class MixedCoupling:
         if terminated:
             t_stop = group.cv.t
             self.ended = (group.terminated_by, t_stop)
-            group.ops = self.all_ops
-            group.set_point(t_stop, group.cv.y_address)
-            group.ops = self.rhs_ops
+            self._everything_at(t_stop)
             if not recorded or recorded[-1] < t_stop - eps:   # the run's last point is where it ended
                 self.check(t_stop)
                 self.recording.record(t_stop)
