@@ -96,7 +96,8 @@ def make_tasks(bench: Path | None, out: Path, quick: bool, measure: bool = True)
     logs = out / "logs"
     scheduled = [s for s in (bench_scripts(bench) if bench is not None else [])
                  if not (quick and PLANS.get(s.name, Plan()).quick_args is None)]
-    missing = [s.name for s in scheduled if s.name in scripts_without_out(s.parent)]
+    without_out = set(scripts_without_out(bench)) if bench is not None else set()
+    missing = [s.name for s in scheduled if s.name in without_out]
     if missing:
         raise BenchError(f"{', '.join(missing)}: no --out option; every benchmark script must write where "
                          "the dashboard says (nothing outside --out)")
