@@ -227,26 +227,35 @@ class _TimedRun:
                 wd.address, timeout_ms, self.servo.url.unit))
         for name, block in (("servo", self.servo), ("loadcell", self.cell)):
             device = LOADCELL_BLOCK if name == "loadcell" else name
-            watch = self.sessions.get(name)
-            if watch is not None:
-                plan = ReadPlan.build(block.map.read_function, block.map.session.spans())
-                regs = self._guarded(device, lambda: plan.read(block.link, block.url.unit))
-                restart = self._guarded(device, lambda: watch.check(regs, time.monotonic()))
-                if restart:
-                    self.events.append({"t_s": self.t_s, "kind": "restart", "device": device,
-                                        "detail": restart, "tare_unknown": name == "loadcell"})
+            self._check_session(name, block)
             lost = self._guarded(device, self.logs[name].poll)
             if lost:
                 self.events.append({"t_s": self.t_s, "kind": "gap", "device": device,
                                     "detail": f"{lost} samples overwritten before they were read"})
         state = self._guarded("servo", lambda: player_state(self.servo))
         if state is PlayerState.IDLE and self.t_s > 0:
+            # A restart between the session read above and this one also stops the player:
+            # read the session again so the fault names the cause.
+            self._check_session("servo", self.servo)
             restarted = any(e["kind"] == "restart" and e["device"] == "servo"
                             for e in self.events)
             raise DeviceFault("servo", "device_error", self.t_s,
                               "the servo restarted: its trajectory is gone" if restarted
                               else "the trajectory player stopped (its watchdog?)")
         return state is PlayerState.DONE
+
+    def _check_session(self, name: str, block: Any) -> None:
+        """Read a device's session registers; a new boot id or a reset uptime is an event."""
+        watch = self.sessions.get(name)
+        if watch is None:
+            return
+        device = LOADCELL_BLOCK if name == "loadcell" else name
+        plan = ReadPlan.build(block.map.read_function, block.map.session.spans())
+        regs = self._guarded(device, lambda: plan.read(block.link, block.url.unit))
+        restart = self._guarded(device, lambda: watch.check(regs, time.monotonic()))
+        if restart:
+            self.events.append({"t_s": self.t_s, "kind": "restart", "device": device,
+                                "detail": restart, "tare_unknown": name == "loadcell"})
 
     def _run_times(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         reader, clock = self.logs[name], self.clocks[name]

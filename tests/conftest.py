@@ -1,4 +1,5 @@
-"""Integration fixtures: whether this machine can keep time for a real-time test right now."""
+"""Fixtures every test folder shares: whether this machine can keep time for a real-time test
+right now. (Fixtures only: test modules import helpers from their own folder's conftest.)"""
 from __future__ import annotations
 
 import time
@@ -7,11 +8,6 @@ import pytest
 
 SLEEP_S = 0.005
 MAX_OVERSHOOT_P90_S = 0.05     # a wake-up later than this, one time in ten: no timing test
-
-
-def pytest_configure(config: pytest.Config) -> None:
-    config.addinivalue_line("markers", "realtime: measures wall-clock behaviour; skipped, with "
-                                       "the measured reason, when the machine cannot keep time")
 
 
 @pytest.fixture
