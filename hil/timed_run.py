@@ -69,8 +69,9 @@ def run_bench_scene(scene: Scene, overrides: Mapping[str, Any] | None = None, *,
     return run_device_timed(scene, overrides, outputs=outputs)
 
 
-def _stroke(sc: Scene) -> tuple[str, np.ndarray, np.ndarray, float]:
+def stroke_of(scene: Scene, overrides: Mapping[str, Any]) -> tuple[str, np.ndarray, np.ndarray, float]:
     """(source signal, times, angles, period) of the open-loop block that drives the servo."""
+    sc = scene.with_overrides(overrides)
     data = sc.to_dict()
     sources = [c.split("->")[0].strip() for c in data["connections"]
                if c.replace(" ", "").endswith("->servo.setpoint_rad")]
@@ -82,11 +83,17 @@ def _stroke(sc: Scene) -> tuple[str, np.ndarray, np.ndarray, float]:
         raise SceneError(f"clock=device: block '{block}' drives the servo and takes inputs (a "
                          "simulated block inside the loop); such scenes need the streaming mode")
     step_s = float(data["master"]["step_s"])
-    stroke = dict(data, blocks={block: data["blocks"][block]}, connections=[],
-                  metrics={"thrust": source, "settle_periods": 0})
+    # The block as the scene file gives it, its --set values applied again below: a scene's
+    # dict keeps them apart ("overrides"), and a scene is not read back from that form.
+    stroke = dict(data, blocks={block: scene.to_dict()["blocks"][block]}, connections=[],
+                  metrics={"thrust": source, "settle_periods": 0}, aliases={})
     stroke["master"] = dict(data["master"], coupling="jacobi", realtime=False, step_s=step_s,
                             output_interval_s=step_s, adaptive=False)
-    result = run_scene(scene_from_dict(stroke, name=f"{sc.name}-stroke"), outputs=[source])
+    mine = {k: v for k, v in overrides.items()
+            if block in (scene.aliases.get(str(k).partition(".")[0], ()) or (str(k).partition(".")[0],))}
+    stroke_scene = scene_from_dict(stroke, name=f"{sc.name}-stroke").with_overrides(
+        {f"{block}.{str(k).partition('.')[2]}": v for k, v in mine.items()})
+    result = run_scene(stroke_scene, outputs=[source])
     return source, np.asarray(result.time), np.asarray(result[source]), result.summary["period_s"]
 
 
@@ -113,7 +120,7 @@ def run_device_timed(scene: Scene, overrides: Mapping[str, Any] | None = None, *
     if outputs and set(outputs) - allowed:
         raise SceneError(f"clock=device records {', '.join(sorted(allowed))}; not "
                          f"{', '.join(sorted(set(outputs) - allowed))}")
-    _source, t_cmd, target_rad, period_s = _stroke(sc)
+    _source, t_cmd, target_rad, period_s = stroke_of(scene, overrides or {})
     servo, cell = _blocks(sc)
     step_s = float(t_cmd[1] - t_cmd[0])
     t_end_s = float(t_cmd[-1])

@@ -137,3 +137,24 @@ def test_the_clock_mapping_undoes_offset_and_drift(drift_ppm):
     for pc_s in (10.0, 33.3, 70.0, 80.0):
         assert clock.to_pc_s(device(pc_s)) == pytest.approx(pc_s, abs=1e-9)
     assert clock.drift_ppm() == pytest.approx(drift_ppm, abs=1e-6)
+
+
+def test_the_uploaded_stroke_is_the_one_the_overrides_ask_for():
+    """`optimize --hardware ...&clock=device` sets the controller's times on every run: the
+    stroke played is the overridden one (a scene's dict keeps --set values apart, so the
+    stroke block is rebuilt from the scene and the values applied again)."""
+    from featherstar.cosim.scenes import load_scene
+    from featherstar.hil.hardware import with_hardware
+    from featherstar.hil.timed_run import stroke_of
+
+    url = "modbus-tcp://127.0.0.1:1?unit={}&clock=device"
+    scene = with_hardware(load_scene("testbed"), {"servo": url.format(2), "loadcell": url.format(1)})
+    times = {"controller.t_up_s": 0.1, "controller.t_hold_up_s": 0.2,
+             "controller.t_down_s": 0.3, "controller.t_hold_down_s": 0.4}
+    _, t_s, angle_rad, period_s = stroke_of(scene, {**times, "master.t_end_s": 2.0})
+    assert period_s == pytest.approx(1.0) and t_s[-1] == pytest.approx(2.0)
+    _, _, default_rad, default_period_s = stroke_of(scene, {"master.t_end_s": 2.0})
+    assert default_period_s == pytest.approx(1.5)
+    # 0.1 s up then held: at 0.2 s the overridden stroke is at its top, the default still rising
+    k = int(round(0.2 / (t_s[1] - t_s[0])))
+    assert angle_rad[k] == pytest.approx(angle_rad.max(), abs=1e-3) and default_rad[k] < 0.9 * default_rad.max()
