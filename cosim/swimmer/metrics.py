@@ -5,8 +5,12 @@ thrust ratio (Eq. 3)  TR = ∫_W T⁺ dt / ∫_W |T⁻| dt
 robot mean speed      (x(end) − x(start)) / W from the body position (or the mean body speed)
 
 W is the window of whole stroke periods after `settle_periods` periods of transient. Signals are
-integrated as the piecewise-linear interpolant of the samples, split exactly at zero crossings,
-so TR does not depend on where the samples fall relative to a sign change. Per-period values are
+integrated as the piecewise-linear interpolant of the samples on the times they were taken
+(any spacing), split exactly at zero crossings, so TR does not depend on where the samples fall
+relative to a sign change. A signal whose block also records `t_read_s` (a streaming hardware
+device: the PC's clock at each read, featherstar.hil.blocks.LoadCell) was taken then, not on the
+master's step grid: a late read on a loaded PC is a sample of later thrust (`sample_times`).
+Periods are windows of the run's time, whichever clock the samples carry. Per-period values are
 reported too: flapped feathers are chaotic (physics notes §9), judge them on windowed statistics.
 
 Each metric states what it needs (`preconditions`): a known period, at least one whole period in
@@ -35,6 +39,27 @@ class Precondition:
     @property
     def holds(self) -> bool:
         return not self.reason
+
+
+READ_TIME_PORT = "t_read_s"
+
+
+def sample_times(t: np.ndarray, signals: dict[str, np.ndarray], name: str) -> tuple[np.ndarray, Precondition | None]:
+    """When the samples of signal `name` ("block.port") were taken: its block's recorded
+    `t_read_s` if there is one, else the run's time grid `t`; with the precondition on the read
+    times (finite, one per row, never decreasing), None when there are none."""
+    read = signals.get(f"{name.rpartition('.')[0]}.{READ_TIME_PORT}")
+    if read is None:
+        return t, None
+    read = np.asarray(read, dtype=float)
+    check = f"read_times_{name.rpartition('.')[0]}"
+    if read.shape != np.shape(t) or not np.all(np.isfinite(read)) or np.any(np.diff(read) < 0):
+        bad = int(np.sum(~np.isfinite(read))) if read.shape == np.shape(t) else -1
+        return t, Precondition(check, f"{name.rpartition('.')[0]}.{READ_TIME_PORT} is not a "
+                                      f"finite, non-decreasing time per sample ({bad} non-finite)"
+                                      if bad >= 0 else f"{READ_TIME_PORT}: {read.shape[0]} read "
+                                      f"times for {np.shape(t)[0]} samples")
+    return read, Precondition(check)
 
 
 def window(t_end: float, period: float | None, settle_periods: float, t0: float = 0.0) -> tuple[float, float, int]:
@@ -171,9 +196,14 @@ def scene_metrics(metrics_spec: Any, period: float | None, t: np.ndarray,
     resolved = all(c.holds for c in checks if c.name == "samples_per_period")
     if metrics_spec.thrust:
         thrust = signals[metrics_spec.thrust]
-        checks.append(finite_precondition("thrust", t, thrust, a, b))
+        t_thrust, read_check = sample_times(t, signals, metrics_spec.thrust)
+        if read_check is not None:
+            checks.append(read_check)
+            out["thrust_times"] = (f"{metrics_spec.thrust.rpartition('.')[0]}.{READ_TIME_PORT}"
+                                   if read_check.holds else "the step grid")
+        checks.append(finite_precondition("thrust", t_thrust, thrust, a, b))
         with np.errstate(invalid="ignore", divide="ignore"):
-            out.update(thrust_metrics(t, thrust, a, b, period, k if resolved else 0))
+            out.update(thrust_metrics(t_thrust, thrust, a, b, period, k if resolved else 0))
         checks += thrust_preconditions(out)
     if metrics_spec.position or metrics_spec.speed:
         name = metrics_spec.position or metrics_spec.speed

@@ -23,7 +23,7 @@ from ..scene.graph import plan as make_plan
 from ..scene.plan import Plan
 from ..scene.preflight import check_metric_window, check_run_size
 from ..scenes import load_scene, name_file
-from .metrics import failed_preconditions, judge_valid_periods, scene_metrics
+from .metrics import failed_preconditions, judge_valid_periods, sample_times, scene_metrics
 from .validity import apply_validity
 
 
@@ -170,7 +170,9 @@ def _realtime_summary(plan: Plan, context: Context, units: Mapping[str, Unit], t
     if not finished:
         return False
     thrust = signals.get(sc.metrics.thrust) if sc.metrics.thrust else None
-    return apply_validity(summary, t, thrust, plan.period_s, sc.master.step_s, late, events)
+    # the thrust's own sample times (a streaming load cell's reads), as its metrics used
+    t_thrust = sample_times(t, signals, sc.metrics.thrust)[0] if thrust is not None else t
+    return apply_validity(summary, t_thrust, thrust, plan.period_s, sc.master.step_s, late, events)
 
 
 def _result(plan: Plan, sim: Simulator, wall: float, overrides: Mapping[str, Any] | None,
@@ -213,7 +215,8 @@ def _result(plan: Plan, sim: Simulator, wall: float, overrides: Mapping[str, Any
         finished = error is None and n > 1
         trusted = _realtime_summary(plan, context, units, t, signals, summary, finished=finished)
         if finished and sc.metrics.thrust:
-            judge_valid_periods(summary, t, signals[sc.metrics.thrust], plan.period_s, trusted)
+            judge_valid_periods(summary, sample_times(t, signals, sc.metrics.thrust)[0],
+                                signals[sc.metrics.thrust], plan.period_s, trusted)
     failed = failed_preconditions(summary)
     complete = error is None and not failed
     if error is None and failed:

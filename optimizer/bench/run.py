@@ -17,11 +17,13 @@ import numpy as np
 
 from ...cosim.errors import StepError
 from ...cosim.scenes import load_scene
+from ...cosim.swimmer.metrics import READ_TIME_PORT, sample_times
 from ...hil.hardware import LOADCELL_BLOCK, check_hardware_overrides, parse_hardware, with_hardware
-from ...hil.timed_run import run_bench_scene
+from ...hil.timed_run import is_device_timed, run_bench_scene
 from ..errors import OptimizerError
 
 THRUST_SIGNAL = f"{LOADCELL_BLOCK}.thrust_N"
+READ_TIME_SIGNAL = f"{LOADCELL_BLOCK}.{READ_TIME_PORT}"   # when a streamed run read each sample
 ANGLE_SIGNAL = "servo.angle_rad"
 
 
@@ -36,8 +38,9 @@ class BenchFault(OptimizerError):
 
 @dataclass(frozen=True)
 class BenchRun:
-    """What the bench recorded: load-cell thrust (tared, N) and servo angle (rad) on `time_s`,
-    and the master's summary (validity, deadline misses, gaps, safe position)."""
+    """What the bench recorded: load-cell thrust (tared, N) and servo angle (rad) on `time_s`
+    (when each thrust sample was taken: the device's clock, or the PC's at the read of a
+    streamed run), and the master's summary (validity, deadline misses, gaps, safe position)."""
 
     time_s: np.ndarray
     thrust_N: np.ndarray
@@ -60,7 +63,8 @@ def run_on_bench(scene: str, hardware: Mapping[str, str], overrides: Mapping[str
     check_hardware_overrides(bench_scene, overrides)
     try:
         # streamed, or device-timed when the URLs say clock=device (docs/hil.md)
-        result = run_bench_scene(bench_scene, dict(overrides), outputs=[THRUST_SIGNAL, ANGLE_SIGNAL])
+        outputs = [THRUST_SIGNAL, ANGLE_SIGNAL] + ([] if is_device_timed(bench_scene) else [READ_TIME_SIGNAL])
+        result = run_bench_scene(bench_scene, dict(overrides), outputs=outputs)
     except StepError as exc:
         if exc.interrupted:
             raise KeyboardInterrupt(exc.interrupted) from exc
@@ -69,8 +73,9 @@ def run_on_bench(scene: str, hardware: Mapping[str, str], overrides: Mapping[str
     if unsafe:
         raise BenchFault(f"{', '.join(unsafe)} did not acknowledge its safe position after the run; "
                          "check the servo by hand", block=unsafe[0])
+    time_s, _ = sample_times(np.asarray(result.time, dtype=float), result.signals, THRUST_SIGNAL)
     return BenchRun(
-        time_s=np.asarray(result.time, dtype=float),
+        time_s=time_s,
         thrust_N=np.asarray(result[THRUST_SIGNAL], dtype=float),
         angle_rad=np.asarray(result[ANGLE_SIGNAL], dtype=float),
         summary=result.summary,
