@@ -61,38 +61,43 @@ class PacerStats:
 
 
 class Pacer:
-    """Call `wait()` at the top of each step; it returns the tick to run, or None once the next
-    tick would lie beyond `end_s` (inclusive; None = run forever)."""
+    """Call `wait()` at the top of each step; it returns the tick to run, or None once the
+    last tick, at `end_s` (inclusive; None = run forever), has run. A step that overruns into
+    the end still gets the last tick (late), so a run always ends at `end_s`.
 
-    def __init__(self, period_s: float, end_s: float | None = None) -> None:
+    `clock` and `sleep` are the wall clock's (time.monotonic, time.sleep); a test passes a
+    simulated clock to check the pacing logic whatever the machine's load."""
+
+    def __init__(self, period_s: float, end_s: float | None = None, *,
+                 clock: Callable[[], float] = time.monotonic,
+                 sleep: Callable[[float], None] = time.sleep) -> None:
         if not period_s > 0:
             raise ValueError(f"period_s must be positive, got {period_s}")
         self.period_s = period_s
+        self._clock, self._sleep = clock, sleep
         # Half a period of slack so that k * period_s rounding never drops the last tick.
-        self._last_s = math.inf if end_s is None else end_s + 0.5 * period_s
+        self._last_k = math.inf if end_s is None else math.floor(end_s / period_s + 0.5)
         self.stats = PacerStats(period_s)
         self.t0_mono: float | None = None
         self._k = 0
         self._tick_start = 0.0
 
     def wait(self) -> Tick | None:
-        now = time.monotonic()
+        now = self._clock()
         if self.t0_mono is None:
             self.t0_mono = self._tick_start = now
             self.stats.n_ticks, self.stats.late_s = 1, array("d", [0.0])
             return Tick(0, 0.0, 0.0, 0.0, 0.0, 0)
         t0, p, k = self.t0_mono, self.period_s, self._k
         self.stats.busy_s.append(now - self._tick_start)
-        if (k + 1) * p > self._last_s:
+        if k + 1 > self._last_k:
             return None
         due = t0 + (k + 1) * p
         overran = now > due
         if not overran:
-            time.sleep(due - now)
-            now = time.monotonic()
-        j = max(k + 1, math.floor((now - t0) / p))
-        if j * p > self._last_s:
-            return None
+            self._sleep(due - now)
+            now = self._clock()
+        j = min(max(k + 1, math.floor((now - t0) / p)), self._last_k)
         skipped = j - (k + 1)
         self.stats.n_ticks += 1
         self.stats.n_misses += overran or skipped > 0

@@ -4,7 +4,6 @@ from __future__ import annotations
 import csv
 import json
 import math
-import threading
 import time
 
 import pytest
@@ -39,19 +38,46 @@ def test_pacer_keeps_the_grid_with_a_light_step():
     assert all(t.wall_s >= t.t_s for t in ticks)
 
 
-def test_pacer_records_deadline_misses_and_skips_passed_ticks():
-    pacer = Pacer(0.01, end_s=0.3)
+class SimulatedClock:
+    """A monotonic clock that only moves when slept on or told to (no wall clock, no load)."""
+
+    def __init__(self) -> None:
+        self.now_s = 100.0
+
+    def __call__(self) -> float:
+        return self.now_s
+
+    def sleep(self, dt_s: float) -> None:
+        self.now_s += dt_s
+
+
+def _paced(end_s: float, busy_s) -> tuple[Pacer, list]:
+    clock = SimulatedClock()
+    pacer = Pacer(0.01, end_s=end_s, clock=clock, sleep=clock.sleep)
     ticks = []
     while (tick := pacer.wait()) is not None:
         ticks.append(tick)
-        if tick.index in (5, 15):
-            time.sleep(0.035)       # 3.5 periods: ticks 6-7 (16-17) pass unrun
+        clock.sleep(busy_s(tick.index))      # the step's work
+    return pacer, ticks
+
+
+def test_pacer_records_deadline_misses_and_skips_passed_ticks():
+    # 3.5 periods of work at ticks 5 and 15: ticks 6-7 (16-17) pass unrun, 8 (18) starts late
+    pacer, ticks = _paced(0.3, lambda k: 0.035 if k in (5, 15) else 0.001)
     stats = pacer.stats
-    assert stats.n_misses >= 2 and stats.n_skipped >= 4
+    assert stats.n_misses == 2 and stats.n_skipped == 4
     late = [t for t in ticks if t.skipped]
-    assert late[0].index >= 8 and late[0].h_s == pytest.approx((late[0].index - 5) * 0.01)
+    assert [t.index for t in late] == [8, 18] and all(t.skipped == 2 for t in late)
+    assert late[0].h_s == pytest.approx(0.03) and late[0].late_s == pytest.approx(0.005)
     assert sum(t.h_s for t in ticks) == pytest.approx(ticks[-1].t_s)   # no time lost
-    assert stats.summary()["busy_max_s"] >= 0.035
+    assert stats.summary()["busy_max_s"] == pytest.approx(0.035)
+
+
+def test_a_step_that_overruns_the_end_still_gets_the_last_tick():
+    pacer, ticks = _paced(0.1, lambda k: 0.03 if k == 8 else 0.001)   # ends past 0.1 s
+    assert ticks[-1].index == 10 and ticks[-1].t_s == pytest.approx(0.1)
+    assert ticks[-1].skipped == 1 and ticks[-1].late_s == pytest.approx(0.01)
+    assert sum(t.h_s for t in ticks) == pytest.approx(0.1)
 
 
 def test_recorder_flushes_periodically_so_a_crash_keeps_the_data(tmp_path):
@@ -104,16 +130,18 @@ def test_killing_the_emulator_mid_run_leaves_data_and_a_fault_note(tmp_path):
                 servo.do_step(t_s - h_s, h_s)
                 cell.do_step(t_s - h_s, h_s)
             servo.set_inputs({"setpoint_rad": 0.5 * math.sin(2 * math.pi * t_s)})
-            return {**servo.get_outputs(), **cell.get_outputs()}
+            sample = {**servo.get_outputs(), **cell.get_outputs()}
+            if t_s >= 0.6 and emu.proc.poll() is None:
+                emu.kill()       # at run time 0.6 s, however late the loaded PC got there
+            return sample
 
-        killer = threading.Timer(0.6, emu.kill)
-        killer.start()
         with pytest.raises(DeviceFault) as info:
             run_paced(step, 100.0, 10.0, tmp_path, flush_s=0.1)
-        killer.join()
         assert info.value.device in ("servo", "thrust-cell")
         rows = read_rows(tmp_path / "samples.csv")
-        assert 40 <= len(rows) <= 70
+        # every tick run up to the kill (a late one skips ticks), and none after it
+        assert float(rows[-1]["t_s"]) >= 0.6 - 1e-9 and float(rows[-2]["t_s"]) < 0.6
+        assert 10 <= len(rows) <= 61
         assert float(rows[-1]["t_s"]) < info.value.t_s
         fault = json.loads((tmp_path / "fault.json").read_text())
         assert fault["device"] == info.value.device and fault["samples_written"] == len(rows)

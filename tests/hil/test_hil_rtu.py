@@ -213,8 +213,11 @@ def test_the_testbed_streams_over_rtu_when_the_machine_keeps_time(make_emulator,
                     f"{keeps_time * 1e3:.1f} ms (p90; this test needs "
                     f"{STREAMED_OVERSHOOT_S * 1e3:.0f} ms)")
     emu = make_emulator(seed=0, rtu="pty", noise_N=0.0)
-    scene = with_hardware(load_scene("testbed"), {"servo": emu.servo_url + "&safe_timeout_s=0.5",
-                                                  "loadcell": emu.loadcell_url})
+    # A reply that a busy moment delays past the step is a deadline miss, not a fault: the
+    # transport is what is tested (the 50 ms default timeout failed once under two busy processes).
+    margins = "&timeout_s=0.5&reconnect_s=3"
+    scene = with_hardware(load_scene("testbed"), {"servo": emu.servo_url + "&safe_timeout_s=0.5" + margins,
+                                                  "loadcell": emu.loadcell_url + margins})
     # 50 Hz, not the scene's 250 Hz: pymodbus' serial client polls for the end of a reply
     # every ms, so a request takes ~2.3 ms over a pty (0.2 ms over TCP), 3 of them per step.
     result = run_scene(scene, {"feather.morphology": "plain", "master.periods": 2,
