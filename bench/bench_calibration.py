@@ -46,7 +46,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from featherstar.cosim.scene.data import load_scene  # noqa: E402
+from featherstar.cosim.scenes import load_scene  # noqa: E402
 from featherstar.cosim.swimmer.controller import resolve_stroke  # noqa: E402
 from featherstar.cosim.swimmer.metrics import thrust_metrics  # noqa: E402
 from featherstar.cosim.swimmer.run import run_scene  # noqa: E402
@@ -77,8 +77,10 @@ ANGLE_QUANTUM_RAD = np.radians(0.01)
 NOISE_N = 0.005
 
 
-def _offline_run(morphology: str, overrides: dict, hidden: dict, seed: int) -> dict:
-    """(time_s, angle_rad, thrust_N, summary with TR and mean thrust) of the plant driven as the client drives it."""
+def _offline_run(morphology: str, overrides: dict, hidden: dict, seed: int, feather_options: dict | None = None,
+                 noise_N: float = NOISE_N) -> dict:
+    """(time_s, angle_rad, thrust_N, summary with TR and mean thrust) of the plant driven as the client
+    drives it; `feather_options`: the plant feather's build options (its model form, e.g. a wake law)."""
     table = load_scene("testbed").to_dict()["blocks"]["controller"]
     stroke = resolve_stroke({"amplitude_deg": table["amplitude_deg"]},
                             {"period_s": PERIOD_S, **{k.split(".", 1)[1]: v for k, v in overrides.items()
@@ -87,7 +89,7 @@ def _offline_run(morphology: str, overrides: dict, hidden: dict, seed: int) -> d
         t_end_s = overrides["master.t_end_s"]
     else:
         t_end_s = overrides["master.periods"] * PERIOD_S
-    plant = FmuPlant(morphology, feather_parameters=hidden)
+    plant = FmuPlant(morphology, feather_parameters=hidden, feather_options=feather_options)
     rng = np.random.default_rng(seed)
     try:
         plant.advance(TARE_AFTER_S)
@@ -113,7 +115,7 @@ def _offline_run(morphology: str, overrides: dict, hidden: dict, seed: int) -> d
         plant.close()
     time_s = np.array(time_s)
     angle = np.round(np.array(angle) / ANGLE_QUANTUM_RAD) * ANGLE_QUANTUM_RAD
-    thrust = np.array(thrust) - tare_N + rng.normal(0.0, NOISE_N, len(time_s))
+    thrust = np.array(thrust) - tare_N + rng.normal(0.0, noise_N, len(time_s))
     settle = overrides.get("metrics.settle_periods", 0)
     metrics = thrust_metrics(time_s, thrust, settle * PERIOD_S, t_end_s, None, 0) if t_end_s > settle * PERIOD_S else {}
     return {"time_s": time_s, "angle_rad": angle, "thrust_N": thrust, "summary": metrics}

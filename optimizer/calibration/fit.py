@@ -37,9 +37,9 @@ from __future__ import annotations
 import math
 import tempfile
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -101,11 +101,13 @@ class Calibration:
     converged: bool = True
     solver_message: str = ""
 
-    def failure(self) -> str | None:
-        """Why this fit is not a calibration (None when it is): a residual, R², value or sd that is
-        not finite, or a least squares that stopped before converging."""
+    def failure(self, *, sd: bool = True) -> str | None:
+        """Why this fit is not a calibration (None when it is): a residual, R², value or (with `sd`)
+        sd that is not finite, or a least squares that stopped before converging. Without `sd` an
+        infinite sd is left to the caller (featherstar.optimizer.calibration.identify flags it)."""
         stats = {"rms residual": self.rms_residual_N, "R²": self.r_squared,
-                 **{f"{k} value": v for k, v in self.values.items()}, **{f"{k} sd": v for k, v in self.sd.items()}}
+                 **{f"{k} value": v for k, v in self.values.items()},
+                 **({f"{k} sd": v for k, v in self.sd.items()} if sd else {})}
         bad = [f"{name} {value}" for name, value in stats.items() if not math.isfinite(value)]
         if bad:
             return f"{', '.join(bad)} (is a recorded sample absurd, or a coefficient without effect on the thrust?)"
@@ -177,7 +179,7 @@ class _Playback:
     """Simulates the feather driven by the mean recorded root angle; one scene, many parameter sets."""
 
     def __init__(self, block: Mapping[str, Any], overrides: Mapping[str, Any], recordings: Sequence[Recording],
-                 window_s: float, workdir: Path) -> None:
+                 window_s: float, workdir: Path, progress: Callable[[int], None] | None = None) -> None:
         self.overrides = {k: v for k, v in overrides.items() if k.startswith("feather.")}
         self.grid_s = np.arange(0.0, window_s + 1e-9, _GRID_S)
         angle = np.mean([np.interp(self.grid_s, r.time_s, r.angle_rad) for r in recordings], axis=0)
@@ -198,10 +200,13 @@ class _Playback:
                        "tank": {"kind": "constant", "outputs": {"flow_speed_m_s": {"value": 0.0, "unit": "m/s"}}}},
         }, name="calibration")
         self.runs = 0
+        self.progress = progress
 
     def thrust_N(self, parameters: Mapping[str, float]) -> np.ndarray:
         """Simulated thrust on the grid for these feather parameters."""
         self.runs += 1
+        if self.progress is not None:
+            self.progress(self.runs)
         try:
             result = run_scene(self.scene, {**self.overrides, **{f"feather.{k}": v for k, v in parameters.items()}},
                                outputs=["feather.thrust_N"])
@@ -218,9 +223,15 @@ def default_fit(model) -> dict[str, None]:
 
 def calibrate(recordings: Sequence[Recording], scene: str, overrides: Mapping[str, Any],
               fit: Mapping[str, tuple[float, float] | None] | None = None, *, window_s: float | None = None,
-              max_simulations: int = 80) -> Calibration:
+              max_simulations: int = 80, start: Mapping[str, float] | None = None,
+              progress: Callable[[int], None] | None = None, require_sd: bool = True) -> Calibration:
     """Least-squares fit of the `fit` coefficients ({name: (low, high) or None for the physical
-    range}; default: DEFAULT_COEFFICIENTS) of the scene's feather to the recordings."""
+    range}; default: DEFAULT_COEFFICIENTS) of the scene's feather to the recordings.
+
+    `start` ({name: value}): start the least squares there and skip the scan (a refit on a subset
+    of the recordings from the fit on all of them: featherstar.optimizer.calibration.forms).
+    `progress(simulations)` is called before each simulation. `require_sd=False` returns a fit
+    whose sd is infinite (a coefficient without effect) for the caller to flag, instead of refusing it."""
     if not recordings:
         raise OptimizerError("calibrate needs at least one recorded run")
     if window_s is None:
@@ -238,11 +249,15 @@ def calibrate(recordings: Sequence[Recording], scene: str, overrides: Mapping[st
     block = feather_block(scene)
     model = feather_model(block, overrides)
     coefficients = coefficient_ranges(model, default_fit(model) if fit is None else fit)
+    if start is not None:
+        # the start is also each coefficient's scale, so it must not be 0
+        coefficients = tuple(replace(c, start=min(max(float(start[c.name]), c.low), c.high))
+                             if float(start[c.name]) > 0 else c for c in coefficients)
     names = [c.name for c in coefficients]
     fixed = {DRAG_SWITCH: 0.0} if DRAG_COEFF in names else {}
     started = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="featherstar-calibrate-") as workdir:
-        playback = _Playback(block, overrides, recordings, window_s, Path(workdir))
+        playback = _Playback(block, overrides, recordings, window_s, Path(workdir), progress)
         measured = _binned(np.array([np.interp(playback.grid_s, r.time_s, r.thrust_N) for r in recordings]))
         for recording, row in zip(recordings, measured):
             with np.errstate(over="ignore"):
@@ -256,7 +271,7 @@ def calibrate(recordings: Sequence[Recording], scene: str, overrides: Mapping[st
             simulated = _binned(playback.thrust_N({**fixed, **dict(zip(names, x * scale))}))
             return (simulated[None, :] - measured).ravel()
 
-        x0 = _scanned_start(residuals, coefficients, scale)
+        x0 = np.ones(len(coefficients)) if start is not None else _scanned_start(residuals, coefficients, scale)
         try:
             fitted = _least_squares(residuals, x0, coefficients, scale, max_simulations)
         except ValueError as exc:   # scipy refuses residuals that are not finite
@@ -287,10 +302,21 @@ def calibrate(recordings: Sequence[Recording], scene: str, overrides: Mapping[st
         converged=bool(fitted.status > 0),
         solver_message=str(fitted.message),
     )
-    failure = result.failure()
+    failure = result.failure(sd=require_sd)
     if failure:
         raise OptimizerError(f"calibration failed, nothing written as a parameter set: {failure}")
     return result
+
+
+def predict(recording: Recording, scene: str, overrides: Mapping[str, Any], parameters: Mapping[str, float],
+            window_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """(measured, simulated) thrust of one recording in BIN_S bins over the window, the feather
+    driven by its recorded root angle with these parameters (a held-out recording's prediction)."""
+    block = feather_block(scene)
+    with tempfile.TemporaryDirectory(prefix="featherstar-predict-") as workdir:
+        playback = _Playback(block, overrides, [recording], window_s, Path(workdir))
+        measured = _binned(np.interp(playback.grid_s, recording.time_s, recording.thrust_N))
+        return measured, _binned(playback.thrust_N(parameters))
 
 
 def _least_squares(residuals, x0: np.ndarray, coefficients: Sequence[Coefficient], scale: np.ndarray,
@@ -330,13 +356,19 @@ def _binned(thrust_N: np.ndarray) -> np.ndarray:
 
 
 def _covariance(jac: np.ndarray, variance: float, scale: np.ndarray) -> tuple[list[float], list[list[float]]]:
-    """Standard deviations (in the coefficients' units) and the correlation matrix from s²(JᵀJ)⁻¹."""
+    """Standard deviations (in the coefficients' units) and the correlation matrix from s²(JᵀJ)⁻¹.
+    A coefficient without effect (a Jacobian column of zeros: the finite difference did not move
+    the thrust) has sd inf and no correlation; the others' covariance is computed without it."""
+    n = len(scale)
+    norms = np.linalg.norm(jac, axis=0)
+    live = np.flatnonzero(norms > 1e-12 * max(float(norms.max(initial=0.0)), 1e-300))
+    sd_scaled, correlation = np.full(n, math.inf), np.full((n, n), math.nan)
     try:
-        cov = variance * np.linalg.inv(jac.T @ jac)
+        cov = variance * np.linalg.inv(jac[:, live].T @ jac[:, live])
     except np.linalg.LinAlgError:
-        n = len(scale)
-        return [math.inf] * n, [[math.nan] * n for _ in range(n)]
-    sd_scaled = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+        return [math.inf] * n, correlation.tolist()
+    sd_live = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    sd_scaled[live] = sd_live
     with np.errstate(invalid="ignore", divide="ignore"):
-        correlation = cov / np.outer(sd_scaled, sd_scaled)
+        correlation[np.ix_(live, live)] = cov / np.outer(sd_live, sd_live)
     return [float(s) for s in sd_scaled * scale], [[float(c) for c in row] for row in correlation]

@@ -36,7 +36,9 @@ _HEADER = re.compile(r"^\s*(?P<name>[^\[]+?)\s*(\[(?P<unit>[^\]]*)\])?\s*$")
 
 @dataclass(frozen=True)
 class Recording:
-    """One run in SI units: time (s, from 0), root angle (rad), thrust (N); period if known."""
+    """One run in SI units: time (s, from 0), root angle (rad), thrust (N); period if known;
+    `complete` from the run's summary.json (False: the run stopped early or failed a check, and
+    `incomplete_reason` says why; None: no summary)."""
 
     source: str
     time_s: np.ndarray
@@ -44,6 +46,8 @@ class Recording:
     thrust_N: np.ndarray
     units: tuple[str, str, str]
     period_s: float | None
+    complete: bool | None = None
+    incomplete_reason: str = ""
 
 
 def _unit(name: str, unit: str | None, quantity: str, source: str) -> str:
@@ -110,18 +114,22 @@ def read_recording(path: str | Path, *, time_column: str | None = None, angle_co
     t = (t - t[0]) * UNITS["time"][t_unit]
     if not np.all(np.diff(t) > 0):
         raise OptimizerError(f"{source}: time does not increase strictly")
-    period = None
+    period, complete, reason = None, None, ""
     summary = (path if path.is_dir() else path.parent) / "summary.json"
     if summary.is_file():
         try:
             stored = json.loads(summary.read_bytes().decode("utf-8"))
         except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
             raise OptimizerError(f"{summary}: unreadable ({exc}); fix or remove it, or give --window-s") from None
-        period = stored.get("period_s") if isinstance(stored, dict) else None
+        stored = stored if isinstance(stored, dict) else {}
+        period = stored.get("period_s")
+        if isinstance(stored.get("complete"), bool):
+            complete = stored["complete"]
+            reason = str(stored.get("incomplete_reason", "")) if not complete else ""
         if period is not None and not (isinstance(period, (int, float)) and math.isfinite(period) and period > 0):
             raise OptimizerError(f"{summary}: period_s = {period!r} is not a positive number of seconds")
     return Recording(source, t, a * UNITS["angle"][a_unit], f * UNITS["thrust"][f_unit], (t_unit, a_unit, f_unit),
-                     float(period) if period else None)
+                     float(period) if period else None, complete, reason)
 
 
 def check_same_stroke(recordings: Sequence[Recording], window_s: float) -> None:

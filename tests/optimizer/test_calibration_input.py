@@ -163,10 +163,13 @@ def test_calibration_recovers_coefficients_from_simulated_recordings(tmp_path):
     # The parameter set, as --set arguments and as a scene's feather parameters line.
     from featherstar.cosim.scenes import load_scene
     from featherstar.optimizer.calibration.cli import write_calibration
+    from featherstar.optimizer.calibration.forms import FormChoice, FormFit
 
-    paths = write_calibration(calibration, tmp_path / "cal", runs=["run0", "run1", "run2"], scene="testbed",
-                              overrides={"feather.morphology": "plain"})
-    assert (tmp_path / "cal" / "set.txt").read_text().startswith("--set feather.oscillatory_drag=0 --set feather.drag_coeff=")
+    fit = FormFit("none", calibration, 0.003, {}, np.zeros(3), calibration.measured_N.size, 1e-3, {}, 80)
+    paths = write_calibration([fit], FormChoice("none", ("none",), "the only form"), tmp_path / "cal",
+                              runs=["run0", "run1", "run2"], scene="testbed", overrides={"feather.morphology": "plain"})
+    assert (tmp_path / "cal" / "set.txt").read_text().startswith(
+        "--set feather.wake=none --set feather.oscillatory_drag=0 --set feather.drag_coeff=")
     line = next(ln for ln in paths[2].read_text().splitlines() if ln.startswith("parameters"))
     scene_text = Path(load_scene("testbed").source).read_text()
     scene_text = "\n".join(line if ln.startswith("parameters = {") else ln for ln in scene_text.splitlines())
@@ -183,8 +186,8 @@ def test_one_absurd_sample_is_refused_and_nothing_is_written(tmp_path, capsys):
     lines[40] = f"{t},{angle},1e300"   # one corrupt load-cell sample
     run.write_text("\n".join(lines) + "\n")
     out = tmp_path / "cal"
-    err = _one_line_error(capsys, ["calibrate", str(run), "--window-s", "1", "--out", str(out),
-                                   "--set", "feather.morphology=plain"])
+    err = _one_line_error(capsys, ["calibrate", str(run), str(run), "--window-s", "1", "--out", str(out),
+                                   "--set", "feather.morphology=plain", "--forms", "none", "-q"])
     assert "1e+300 N" in err and "cannot be fitted" in err
     assert not out.exists()
 
