@@ -28,7 +28,7 @@ from .options import command, count, number, one_line_errors, out_dir
 from .space import STROKE_VARIABLES, ServoLimits, stroke_space
 from .postprocess import optional
 from .study import SUMMARY_KEYS, run_study
-from .sweep import FAMILIES, format_table, run_sweep, write_csv
+from .sweep import FAMILIES, format_table, normalized_thrust_note, run_sweep, write_csv
 from .synthetic import SyntheticFeather
 
 _SYNTHETIC_PREFIX = "synthetic:"
@@ -264,10 +264,15 @@ def _sweep_command(args: argparse.Namespace) -> int:
     timing = {"wall_s": result.wall_s, "simulation_s": result.simulation_s, "workers": result.workers,
               "runs": len(result.runs), "resumed_runs": result.resumed_runs,
               "failed_runs": sum(1 for r in result.runs if r["error"])}
+    note = normalized_thrust_note(result.runs, result.table)
+    if note:
+        timing["normalized_thrust_undefined"] = note
     (args.out / "summary.json").write_text(json.dumps(timing, indent=2) + "\n")
     optional("fig3_sweep.png", sweep_figure, result.table, ["thrust_ratio", "normalized_thrust"],
-             args.out / "fig3_sweep.png")
+             args.out / "fig3_sweep.png", note=note)
     print(format_table(result.table))
+    if note:
+        print(f"normalized thrust (max T̄/T̄ref) undefined for every geometry, column NaN and not drawn: {note}")
     print(f"{len(result.runs)} runs in {result.wall_s:.1f} s; wrote {args.out}/runs.csv, table.csv, fig3_sweep.png")
     return 0
 

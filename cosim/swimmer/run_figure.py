@@ -105,10 +105,11 @@ def run_figure(result: Any) -> Any:
     if per:
         numbers = np.arange(1, len(per) + 1)
         gone = {number for number, *_ in excluded}
-        colors = ["0.75" if n in gone else "C0" for n in numbers]
-        bars.bar(numbers, per, color=colors, label="TR of the period")
-        if gone:
-            bars.bar([], [], color="0.75", label="excluded period")
+        kept = [k for k, n in enumerate(numbers) if n not in gone]
+        dropped = [k for k, n in enumerate(numbers) if n in gone]
+        bars.bar(numbers[kept], np.asarray(per, float)[kept], color="C0", label="TR of the period")
+        if dropped:
+            bars.bar(numbers[dropped], np.asarray(per, float)[dropped], color="0.75", label="excluded period")
         bars.axhline(s.get("thrust_ratio", np.nan), color="C1", label="window TR")
         bars.axhline(1.0, color="k", lw=0.5)
         bars.legend(loc="lower right", fontsize=7)
