@@ -27,7 +27,7 @@ from .objective import Objective, SceneObjective, WithOverrides
 from .options import command, count, number, one_line_errors, out_dir
 from .space import STROKE_VARIABLES, ServoLimits, stroke_space
 from .postprocess import optional
-from .study import SUMMARY_KEYS, run_study
+from .study import SUMMARY_KEYS, baseline_outside_box, run_study
 from .sweep import FAMILIES, format_table, normalized_thrust_note, run_sweep, write_csv
 from .synthetic import SyntheticFeather
 
@@ -199,6 +199,9 @@ def _optimize_command(args: argparse.Namespace) -> int:
         return bench_optimize(args, space, overrides, tuple(compare))
     objective = make_objective(args.scene, overrides)
     print(f"optimizing {args.scene} ({args.objective} TR, {args.iterations} iterations) → {args.out}/evaluations.jsonl")
+    outside = baseline_outside_box(space)
+    if outside:
+        print(f"note: {outside}")
     try:
         with _executor(args, default_workers=_batch_workers(args)) as executor:
             summary = run_study(
@@ -217,6 +220,10 @@ def _optimize_command(args: argparse.Namespace) -> int:
         f"  baseline TR = {summary['baseline_thrust_ratio']:.3f} ± {summary['baseline_thrust_ratio_sd']:.3f}\n"
         f"wrote {args.out}/summary.json, fig6_progress.png, fig8_validation.png"
     )
+    sign = 1 if summary["objective"] == "max" else -1
+    if summary["baseline_outside_search_box"] and sign * (summary["thrust_ratio"] - summary["baseline_thrust_ratio"]) < 0:
+        print(f"the study ended {'below' if sign > 0 else 'above'} the baseline, and "
+              f"{summary['baseline_outside_search_box']}")
     return 0
 
 
