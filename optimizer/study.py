@@ -46,9 +46,12 @@ def baseline_outside_box(space: SearchSpace, like: Mapping[str, float] | None = 
     if not problems:
         return None
     stroke = symmetric_stroke(space.period_s, space.amplitude_deg)
+    min_ramp_s = space.servo.min_ramp_s(space.amplitude_deg)
+    servo = (f"; the servo's box wants ramps >= {min_ramp_s:.3f} s for {space.amplitude_deg:g}° at "
+             f"{space.servo.max_rate_rad_s:g} rad/s (--servo-rate)" if stroke.t_up_s < min_ramp_s else "")
     return (f"the baseline lies outside the search box: {'; '.join(problems)} (the baseline is the symmetric stroke, "
-            f"ramps {stroke.t_up_s:g} s, holds {stroke.t_hold_up_s:g} s; it is validated beside the optimum, "
-            "but the optimizer cannot propose it, so a short study may end below it)")
+            f"ramps {stroke.t_up_s:g} s, holds {stroke.t_hold_up_s:g} s{servo}); it is validated beside the optimum, "
+            "but the optimizer cannot propose it, so a short study may end below it")
 
 
 def summarize(
