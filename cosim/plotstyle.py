@@ -114,18 +114,20 @@ def finish(fig: Any) -> Any:
     return fig
 
 
-def robust_ylim(ax: Any, values: Any, *, pad: float = 0.1) -> bool:
-    """Scale the y axis to the bulk of `values` (its 1st to 99th percentile, padded) when the
-    extremes (a start transient) would squash it; True when it clipped (say so in the label)."""
+def robust_ylim(ax: Any, values: Any, *, inside: Any = None, pad: float = 0.15) -> bool:
+    """Scale the y axis to the bulk of `values` (the `inside` samples, e.g. a run's metric window,
+    else the 5th to 95th percentile), padded, when the extremes (a start transient) would squash
+    it; True when it clipped (say so in the axis label)."""
     y = np.asarray(values, float)
-    y = y[np.isfinite(y)]
-    if y.size < 10:
+    finite = np.isfinite(y)
+    bulk = y[finite & np.asarray(inside, bool)] if inside is not None else y[finite]
+    if bulk.size < 2:
         return False
-    lo, hi = np.percentile(y, [1, 99])
-    span = max(hi - lo, 1e-12)
-    if y.min() >= lo - 3 * span * pad and y.max() <= hi + 3 * span * pad:
+    lo, hi = (float(bulk.min()), float(bulk.max())) if inside is not None else np.percentile(bulk, [5, 95])
+    margin = pad * max(hi - lo, 1e-12)
+    if np.nanmin(y) >= lo - 3 * margin and np.nanmax(y) <= hi + 3 * margin:
         return False
-    ax.set_ylim(lo - pad * span, hi + pad * span)
+    ax.set_ylim(lo - margin, hi + margin)
     return True
 
 

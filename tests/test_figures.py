@@ -255,6 +255,20 @@ def test_the_style_finishes_a_figure():
     plt.close(fig)
 
 
+def test_robust_limits_clip_a_transient_only():
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots()
+    t = np.linspace(0, 6, 600)
+    y = np.sin(4 * t)
+    assert not plotstyle.robust_ylim(ax, y)                   # nothing to clip
+    y[:10] = 50.0                                              # a start transient
+    assert plotstyle.robust_ylim(ax, y)
+    assert ax.get_ylim()[1] < 2
+    assert plotstyle.robust_ylim(ax, y, inside=t > 3)          # the metric window's range
+    plt.close(fig)
+
+
 # ---------------------------------------------------------------- the cases
 
 def _bench(name: str) -> Any:
