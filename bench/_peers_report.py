@@ -78,6 +78,7 @@ def plot(result: dict[str, Any], path: Path) -> None:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from featherstar.cosim.plotstyle import save_figure
 
     systems = result["systems"]
     fig, axes = plt.subplots(2, len(systems), figsize=(6.5 * len(systems), 8), squeeze=False)
@@ -89,11 +90,11 @@ def plot(result: dict[str, Any], path: Path) -> None:
                 marker = next((m for prefix, m in MARKERS.items() if row["run"].startswith(prefix)), "x")
                 ax.loglog(row["wall_s"], max(row[key], floor), marker=marker, linestyle="none", markersize=8,
                           alpha=0.8, label=row["run"] + (" (error 0)" if row[key] == 0 else ""))
-            ax.set_xlabel(f"wall time, s (best of {result['settings']['repeats']})")
+            ax.set_xlabel(f"wall time (s, best of {result['settings']['repeats']})")
             ax.set_ylabel(f"{text}\nagainst strong at rtol {result['settings']['reference_rtol']:g}")
             ax.set_title(f"{name}: {system['description']}", fontsize=9)
             ax.grid(True, which="both", alpha=0.3)
             ax.legend(fontsize=7, loc="best")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)

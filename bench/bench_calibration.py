@@ -45,6 +45,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+from featherstar.cosim.plotstyle import save_figure  # noqa: E402
 import numpy as np  # noqa: E402
 from featherstar.cosim.scenes import load_scene  # noqa: E402
 from featherstar.cosim.swimmer.controller import resolve_stroke  # noqa: E402
@@ -267,7 +268,7 @@ def plot(result, path: Path, title: str) -> None:
     ax.set_title(title, fontsize=9)
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path, dpi=120)
     plt.close(fig)
 
 

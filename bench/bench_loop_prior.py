@@ -35,6 +35,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+from featherstar.cosim.plotstyle import save_figure  # noqa: E402
 import numpy as np  # noqa: E402
 from featherstar.hil.emulator import spawn_emulator  # noqa: E402
 from featherstar.optimizer.bayes import optimize  # noqa: E402
@@ -163,7 +164,7 @@ def _figure(studies: list[dict], target: float, path: Path) -> None:
     ax.set_title("bench study on the emulator (hidden coefficients)", fontsize=9)
     ax.legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path, dpi=120)
     plt.close(fig)
 
 

@@ -206,6 +206,7 @@ def plot(report: dict, path: Path) -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from featherstar.cosim.plotstyle import save_figure
 
     scenes = report["scenes"]
     fig, axes = plt.subplots(2, len(scenes), figsize=(6.5 * len(scenes), 9.5), squeeze=False,
@@ -227,7 +228,7 @@ def plot(report: dict, path: Path) -> None:
             ax.set_ylabel("run time (s)")
             ax.set_title(entry["scene"])
             ax.legend(fontsize=7)
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
 
 

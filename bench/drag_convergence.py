@@ -111,6 +111,7 @@ def plot(result: dict, path: Path) -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from featherstar.cosim.plotstyle import save_figure
 
     fig, (rule_ax, n_ax, tol_ax) = plt.subplots(1, 3, figsize=(15, 4.2))
     finest = result["rules"][rule_name(*FINEST)]["cases"]
@@ -129,12 +130,12 @@ def plot(result: dict, path: Path) -> None:
         tols = sorted(result["rtol"], key=float)
         tol_ax.semilogx([float(t) for t in tols], [result["rtol"][t][case]["thrust_ratio"] for t in tols], "o-",
                         label=case)
-    n_ax.set(xlabel="n_units", ylabel="TR", title=f"Links (rule {result['default_rule']})")
+    n_ax.set(xlabel="N units", ylabel="TR", title=f"Links (rule {result['default_rule']})")
     tol_ax.set(xlabel="master rtol (atol = rtol/100)", ylabel="TR", title="Solver tolerance")
     n_ax.legend(fontsize=8)
     tol_ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
 
 

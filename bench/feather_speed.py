@@ -328,6 +328,7 @@ def step_budget() -> list[dict[str, Any]]:
 def plot(result: dict[str, Any], path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from featherstar.cosim.plotstyle import save_figure
 
     fig, (ax_rhs, ax_run, ax_build) = plt.subplots(1, 3, figsize=(15, 4.5))
     for morphology, color in zip(MORPHOLOGIES, ("C0", "C1", "C2")):
@@ -347,16 +348,16 @@ def plot(result: dict[str, Any], path: Path) -> None:
     first = [r for r in result["rhs"] if r["morphology"] == "chordwise" and r["formulation"] == "chain"][0]
     ax_rhs.loglog(sizes, [first["xdot"]["ns_median"] / 1e3 * n / sizes[0] for n in sizes], ":", color="0.5",
                   label="∝ N")
-    ax_rhs.set(xlabel="units N", ylabel="µs per RHS evaluation (compiled)", title="RHS cost")
-    ax_run.set(xlabel="units N", ylabel="wall s", title="6 periods, kinematic scene, FMU master")
-    ax_build.set(xlabel="units N", ylabel="build s (cold)", title="FMU build time")
+    ax_rhs.set(xlabel="N units", ylabel="µs per RHS evaluation (compiled)", title="RHS cost")
+    ax_run.set(xlabel="N units", ylabel="wall time (s)", title="6 periods, kinematic scene, FMU master")
+    ax_build.set(xlabel="N units", ylabel="build time, cold (s)", title="FMU build time")
     for ax in (ax_rhs, ax_run, ax_build):
         ax.set_xticks(sizes, [str(n) for n in sizes])
         ax.minorticks_off()
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path, dpi=120)
 
 
 def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:

@@ -75,6 +75,7 @@ def plot(results: dict, stroke: Stroke, path: Path) -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from featherstar.cosim.plotstyle import save_figure
 
     fig, (ax_fold, ax_thrust) = plt.subplots(2, 1, figsize=(7, 5.5), sharex=True)
     for name in ("supported", "free root part"):
@@ -92,7 +93,7 @@ def plot(results: dict, stroke: Stroke, path: Path) -> None:
     ax_fold.legend()
     ax_fold.set_title("Spanwise LR 2, symmetric stroke: held root part vs free root part")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
 
 

@@ -346,6 +346,7 @@ def print_table(result: dict) -> None:
 def plot(result: dict, path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from featherstar.cosim.plotstyle import save_figure
     fig, axes = plt.subplots(1, 3, figsize=(14, 4))
     ax = axes[0]
     names = list(result["build"])
@@ -355,8 +356,9 @@ def plot(result: dict, path: Path) -> None:
     ax.bar(x + 0.2, [e["cached_s"] for e in result["build"].values()], 0.4, label="cached")
     ax.set_yscale("log")
     ax.set_xticks(x, names, rotation=30, ha="right")
-    ax.set_ylabel("build time, s")
-    ax.set_title("build_fmu")
+    ax.set_xlabel("FMU")
+    ax.set_ylabel("build time (s)")
+    ax.set_title("FMU build")
     ax.legend()
 
     ax = axes[1]
@@ -369,7 +371,8 @@ def plot(result: dict, path: Path) -> None:
     ax.bar(x + 0.27, [sc[n]["me"]["derivative_us"] for n in names], 0.27, label="ME derivative")
     ax.set_yscale("log")
     ax.set_xticks(x, names, rotation=30, ha="right")
-    ax.set_ylabel("us per call (from Python)")
+    ax.set_xlabel("FMU")
+    ax.set_ylabel("µs per call (from Python)")
     ax.set_title("FMU cost per call")
     ax.legend(fontsize=8)
 
@@ -382,12 +385,13 @@ def plot(result: dict, path: Path) -> None:
         bars = ax.bar(x + (i - 1) * 0.27, [runs[n][key]["wall_s"] for n in names], 0.27, label=label)
         ax.bar_label(bars, [f"TR {runs[n][key]['thrust_ratio']:.2f}" for n in names], fontsize=7)
     ax.set_xticks(x, [f"{n}\n{runs[n]['periods']} periods" for n in names])
+    ax.set_xlabel("FMU and its run length")
     ax.set_yscale("log")
-    ax.set_ylabel("wall time, s")
+    ax.set_ylabel("wall time (s)")
     ax.set_title("stroke run (label: TR over last half)")
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
 
 

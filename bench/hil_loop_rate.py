@@ -114,22 +114,23 @@ def main() -> int:
 def plot(result: dict, step_ms: dict[int, list[float]], out: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from featherstar.cosim.plotstyle import save_figure
     fig, (ax_cdf, ax_miss) = plt.subplots(1, 2, figsize=(9, 3.5))
     for rate_hz, values in step_ms.items():
         values = sorted(values[1:])       # the first sample does no I/O
         ax_cdf.plot(values, [i / len(values) for i in range(len(values))], label=f"{rate_hz} Hz")
         ax_cdf.axvline(1e3 / rate_hz, ls=":", color=ax_cdf.lines[-1].get_color())
     ax_cdf.set_xscale("log")
-    ax_cdf.set_xlabel("step time, ms (dotted: period)")
+    ax_cdf.set_xlabel("step time (ms; dotted: the period)")
     ax_cdf.set_ylabel("fraction of steps")
     ax_cdf.legend()
     rates = result["rates"]
     ax_miss.bar([str(r["rate_hz"]) for r in rates], [100 * r["miss_fraction"] for r in rates])
-    ax_miss.set_xlabel("loop rate, Hz")
-    ax_miss.set_ylabel("deadline misses, % of steps")
+    ax_miss.set_xlabel("loop rate (Hz)")
+    ax_miss.set_ylabel("deadline misses (% of steps)")
     fig.suptitle("Paced HIL loop over loopback (servo write + read-back, load-cell read)")
     fig.tight_layout()
-    fig.savefig(out / "hil_loop_rate.png", dpi=110)
+    save_figure(fig, out / "hil_loop_rate.png", dpi=110)
 
 
 if __name__ == "__main__":

@@ -62,6 +62,7 @@ def plot(result: dict, out: Path) -> None:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from featherstar.cosim.plotstyle import save_figure
 
     fig, ax = plt.subplots(figsize=(6, 4))
     for (label, _, _), marker in zip(VARIANTS, "o^sd"):
@@ -70,13 +71,13 @@ def plot(result: dict, out: Path) -> None:
         for r in rows:
             ax.annotate(f"{r['step_s'] * 1e3:g} ms", (r["wall_s"], r["tr_rel_error"]), fontsize=7,
                         xytext=(3, 3), textcoords="offset points")
-    ax.set_xlabel("wall time, s")
+    ax.set_xlabel("wall time (s)")
     ax.set_ylabel("TR relative error against the tight reference")
     ax.set_title("Test bed with a CS-only command filter: work against precision")
     ax.legend(title="coupling")
     ax.grid(True, which="both", alpha=0.3)
     fig.tight_layout()
-    fig.savefig(out / "mixed_coupling.png", dpi=110)
+    save_figure(fig, out / "mixed_coupling.png", dpi=110)
 
 
 def main() -> int:

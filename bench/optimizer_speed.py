@@ -53,6 +53,7 @@ def optimize(out: Path, iterations: int, seed: int, batch_size: int) -> dict[str
 def plot(result: dict[str, Any], path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from featherstar.cosim.plotstyle import save_figure
 
     fig, (ax_time, ax_tr) = plt.subplots(1, 2, figsize=(10, 4))
     for k, (mode, rows) in enumerate(result["runs"].items()):
@@ -61,7 +62,7 @@ def plot(result: dict[str, Any], path: Path) -> None:
         ax_tr.bar([s + 0.35 * k for s in seeds], [r["best_thrust_ratio"] for r in rows], width=0.35,
                   yerr=[r["best_thrust_ratio_sd"] for r in rows], label=mode)
     ax_time.axhline(60, color="0.4", ls=":", label="goal 60 s")
-    ax_time.set(xlabel="seed", ylabel="wall s", title=f"{result['iterations']} iterations, testbed")
+    ax_time.set(xlabel="seed", ylabel="wall time (s)", title=f"{result['iterations']} iterations, testbed")
     ax_tr.set(xlabel="seed", ylabel="validated best TR", title="best TR found")
     trs = [r["best_thrust_ratio"] for rows in result["runs"].values() for r in rows]
     ax_tr.set_ylim(min(trs) - 0.1, max(trs) + 0.1)
@@ -70,7 +71,7 @@ def plot(result: dict[str, Any], path: Path) -> None:
         ax.set_xticks([s + 0.175 for s in seeds], [str(s) for s in seeds])
         ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path, dpi=120)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

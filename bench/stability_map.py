@@ -163,6 +163,7 @@ def plot(report: dict[str, Any], path: Path) -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from featherstar.cosim.plotstyle import save_figure
 
     entries = [e for e in report["cells"] if e.get("weak")]
     panels = [("N", "plain"), ("N", "spanwise"), ("stiffness", "spanwise"), ("stiffness", "chordwise")]
@@ -200,7 +201,7 @@ def plot(report: dict[str, Any], path: Path) -> None:
     axes[0][0].legend(fontsize=7)
     fig.suptitle("Largest stable macro step of the weak couplings (hollow triangle: no failure up to there; "
                  "strong coupling has no macro step)", fontsize=10)
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
 
 

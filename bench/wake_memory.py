@@ -236,13 +236,14 @@ def plot(result: dict, models: dict[str, WakeModel | None], plate: RigidPlate, p
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from featherstar.cosim.plotstyle import save_figure
 
     fig, (fit_ax, tr_ax, time_ax) = plt.subplots(1, 3, figsize=(15, 4.2))
     kc_line = np.geomspace(2, 400, 100)
     fit_ax.semilogx(kc_line, luhar_nepf(kc_line), "k-", label="Luhar & Nepf 2016 fit")
     for law, fit in result["laws"].items():
         fit_ax.semilogx(result["kc_fit_points"], fit["fitted_drag_coeff"], "o--", label=f"wake, {law} decay")
-    fit_ax.set(xlabel="KC", ylabel="Fourier-averaged C_d", title="Sinusoidal oscillation: what the wake laws are fitted to")
+    fit_ax.set(xlabel="KC", ylabel="Fourier-averaged drag coefficient $C_d$", title="Sinusoidal oscillation: what the wake laws are fitted to")
     fit_ax.legend(fontsize=8)
     names = list(result["rigid_plate"])
     x = np.arange(len(names))
@@ -250,7 +251,7 @@ def plot(result: dict, models: dict[str, WakeModel | None], plate: RigidPlate, p
     tr_ax.bar(x + 0.2, [result["rigid_plate"][n]["best_thrust_ratio"] for n in names], 0.4, label="best feasible stroke")
     tr_ax.axhline(1.15, color="r", lw=0.8, ls=":", label="paper's plain feather: TR ≲ 1 (band 1.15)")
     tr_ax.set_xticks(x, names, rotation=15)
-    tr_ax.set(ylabel="TR of a rigid plate", title="Rigid plate (drag + reactive)")
+    tr_ax.set(xlabel="drag model", ylabel="TR of a rigid plate", title="Rigid plate (drag + reactive)")
     tr_ax.legend(fontsize=8)
     best_stroke = Stroke(*result["rigid_plate"]["quasi-steady"]["best_stroke_s"])
     for name, model in models.items():
@@ -260,7 +261,7 @@ def plot(result: dict, models: dict[str, WakeModel | None], plate: RigidPlate, p
                 title="Thrust under the quasi-steady model's best stroke")
     time_ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
 
 

@@ -27,16 +27,23 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("models", nargs="*", metavar="MODEL", help="catalog model name (default: all)")
     parser.add_argument("--out", type=Path, help="directory for <model>.fmu (default: the cache itself)")
     parser.add_argument("--force", action="store_true", help="rebuild even when a cached FMU is current")
+    parser.add_argument("-q", "--quiet", action="store_true",
+                        help="one line per cold build (what and how long) instead of its start and elapsed time")
 
     def run(args: argparse.Namespace) -> int:
         # Imported here: the catalog builds every model's equations, which `--help` should not wait for.
+        from .build_progress import next_block, number_builds, set_quiet
         from .catalog import MODELS
         from .export import build_fmu
 
         unknown = [name for name in args.models if name not in MODELS]
         if unknown:
             parser.error(f"unknown model(s) {', '.join(unknown)}; known models: {', '.join(MODELS)}")
-        for name in args.models or list(MODELS):
+        names = args.models or list(MODELS)
+        number_builds(len(names))
+        set_quiet(args.quiet)
+        for name in names:
+            next_block()
             try:
                 print(build_fmu(MODELS[name](), args.out, force=args.force, fmi_version=args.fmi), flush=True)
             except FeatherstarError as error:

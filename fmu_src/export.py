@@ -28,6 +28,7 @@ from pathlib import Path
 import casadi as ca
 import fmpy
 
+from .build_progress import cold_build
 from .errors import BuildError
 from .model import Model
 from .shell_tables import variable_tables
@@ -122,7 +123,7 @@ def build_fmu(model: Model, out_dir: Path | None = None, *, force: bool = False,
     with open(cached.parent / ".lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
         if force or not cached.exists():
-            with tempfile.TemporaryDirectory(prefix="featherstar-fmu-") as tmp:
+            with cold_build(model.name), tempfile.TemporaryDirectory(prefix="featherstar-fmu-") as tmp:
                 _atomic_copy(_build(model, shell, Path(tmp), fmi_version), cached)
     if out_dir is None:
         return cached

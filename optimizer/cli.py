@@ -27,8 +27,8 @@ from .objective import Objective, SceneObjective, WithOverrides
 from .options import command, count, number, one_line_errors, out_dir
 from .space import STROKE_VARIABLES, ServoLimits, stroke_space
 from .postprocess import optional
-from .study import SUMMARY_KEYS, run_study
-from .sweep import FAMILIES, format_table, run_sweep, write_csv
+from .study import SUMMARY_KEYS, baseline_outside_box, run_study
+from .sweep import FAMILIES, format_table, normalized_thrust_note, run_sweep, write_csv
 from .synthetic import SyntheticFeather
 
 _SYNTHETIC_PREFIX = "synthetic:"
@@ -199,6 +199,9 @@ def _optimize_command(args: argparse.Namespace) -> int:
         return bench_optimize(args, space, overrides, tuple(compare))
     objective = make_objective(args.scene, overrides)
     print(f"optimizing {args.scene} ({args.objective} TR, {args.iterations} iterations) → {args.out}/evaluations.jsonl")
+    outside = baseline_outside_box(space)
+    if outside:
+        print(f"note: {outside}")
     try:
         with _executor(args, default_workers=_batch_workers(args)) as executor:
             summary = run_study(
@@ -217,6 +220,10 @@ def _optimize_command(args: argparse.Namespace) -> int:
         f"  baseline TR = {summary['baseline_thrust_ratio']:.3f} ± {summary['baseline_thrust_ratio_sd']:.3f}\n"
         f"wrote {args.out}/summary.json, fig6_progress.png, fig8_validation.png"
     )
+    sign = 1 if summary["objective"] == "max" else -1
+    if summary["baseline_outside_search_box"] and sign * (summary["thrust_ratio"] - summary["baseline_thrust_ratio"]) < 0:
+        print(f"the study ended {'below' if sign > 0 else 'above'} the baseline, and "
+              f"{summary['baseline_outside_search_box']}")
     return 0
 
 
@@ -264,10 +271,15 @@ def _sweep_command(args: argparse.Namespace) -> int:
     timing = {"wall_s": result.wall_s, "simulation_s": result.simulation_s, "workers": result.workers,
               "runs": len(result.runs), "resumed_runs": result.resumed_runs,
               "failed_runs": sum(1 for r in result.runs if r["error"])}
+    note = normalized_thrust_note(result.runs, result.table)
+    if note:
+        timing["normalized_thrust_undefined"] = note
     (args.out / "summary.json").write_text(json.dumps(timing, indent=2) + "\n")
     optional("fig3_sweep.png", sweep_figure, result.table, ["thrust_ratio", "normalized_thrust"],
-             args.out / "fig3_sweep.png")
+             args.out / "fig3_sweep.png", note=note)
     print(format_table(result.table))
+    if note:
+        print(f"normalized thrust (max T̄/T̄ref) undefined for every geometry, column NaN and not drawn: {note}")
     print(f"{len(result.runs)} runs in {result.wall_s:.1f} s; wrote {args.out}/runs.csv, table.csv, fig3_sweep.png")
     return 0
 

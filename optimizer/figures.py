@@ -5,14 +5,14 @@ Headless (Agg); every function writes one file and returns its path.
 from __future__ import annotations
 
 import math
+import textwrap
 from pathlib import Path
 from typing import Mapping, Sequence
 
-import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402  (after choosing the headless backend)
-import numpy as np  # noqa: E402
+from ..cosim.plotstyle import save_figure
 
 _CONTROLLER_ORDER = ("best", "baseline", "worst")
 _CONTROLLER_COLOURS = {"best": "tab:green", "baseline": "tab:gray", "worst": "tab:red"}
@@ -24,6 +24,7 @@ def progress_figure(
 ) -> Path:
     """Fig. 6: observed and estimated TR per iteration, then each variable (observed points and
     the current best-estimate point). `title` names the study (e.g. measured on the bench)."""
+    title = title or "Optimizer progress: TR per iteration and the variables tried"
     iterations = np.arange(1, len(evaluations) + 1)
     fig, axes = plt.subplots(1 + len(names), 1, sharex=True, figsize=(6, 1.8 * (1 + len(names))))
     estimated = [math.nan if e is None else e["thrust_ratio"] for e in estimates]
@@ -34,10 +35,9 @@ def progress_figure(
     for ax, name in zip(axes[1:], names):
         ax.plot(iterations, [e["params"][name] for e in evaluations], "o", ms=4, color="tab:blue")
         ax.plot(iterations, [math.nan if e is None else e["params"][name] for e in estimates], "-", color="tab:orange")
-        ax.set_ylabel(label(name), fontsize=7)
+        ax.set_ylabel(label(name))
     axes[-1].set_xlabel("iteration")
-    if title:
-        axes[0].set_title(title, fontsize=9)
+    axes[0].set_title(title)
     fig.tight_layout()
     return _save(fig, path)
 
@@ -45,6 +45,7 @@ def progress_figure(
 def validation_figure(rows: Sequence[Mapping], path: str | Path, *, title: str | None = None) -> Path:
     """Fig. 8: TR and mean thrust (mean ± sd over the validation repeats) per morphology and
     controller. Rows: morphology, controller (best/baseline/worst), thrust_ratio(_sd), mean_thrust_N(_sd)."""
+    title = title or "Validation: best, baseline and worst controllers (mean ± sd over repeats)"
     morphologies = list(dict.fromkeys(r["morphology"] for r in rows))
     controllers = [c for c in _CONTROLLER_ORDER if any(r["controller"] == c for r in rows)]
     width = 0.8 / max(len(controllers), 1)
@@ -63,40 +64,56 @@ def validation_figure(rows: Sequence[Mapping], path: str | Path, *, title: str |
     axes[0].legend(fontsize=7)
     axes[1].set_ylabel("mean thrust (mN)")
     axes[1].set_xticks(np.arange(len(morphologies)), morphologies, fontsize=8)
-    if title:
-        axes[0].set_title(title, fontsize=9)
+    axes[1].set_xlabel("feather")
+    axes[0].set_title(title)
     fig.tight_layout()
     return _save(fig, path)
 
 
-def sweep_figure(table: Sequence[Mapping], metrics: Sequence[str], path: str | Path) -> Path:
-    """Fig. 3: per-geometry maxima over controllers against WR or LR, one panel per family."""
+def _finite(value: object) -> bool:
+    return isinstance(value, (int, float)) and math.isfinite(value)
+
+
+def sweep_figure(table: Sequence[Mapping], metrics: Sequence[str], path: str | Path, *, note: str | None = None) -> Path:
+    """Fig. 3: per-geometry maxima over controllers against WR or LR, one panel per family and
+    metric. A metric undefined for every geometry gets no panel: the figure says so under its
+    title, with `note` (the sweep's reason) when given."""
     families = list(dict.fromkeys(r["family"] for r in table))
-    fig, axes = plt.subplots(len(metrics), len(families), figsize=(4 * len(families), 2.6 * len(metrics)), squeeze=False)
+    drawn = [m for m in metrics if any(_finite(r[m]) for r in table)] or list(metrics[:1])
+    left_out = [m for m in metrics if m not in drawn]
+    fig, axes = plt.subplots(len(drawn), len(families), figsize=(4 * len(families), 2.6 * len(drawn) + 0.6),
+                             squeeze=False)
     for column, family in enumerate(families):
         rows = sorted((r for r in table if r["family"] == family), key=lambda r: r["ratio"])
-        for row_index, metric in enumerate(metrics):
+        for row_index, metric in enumerate(drawn):
             ax = axes[row_index][column]
-            values = [r[metric] for r in rows]
-            ax.plot([r["ratio"] for r in rows], values, "o-", ms=3)
-            if not any(isinstance(v, (int, float)) and math.isfinite(v) for v in values):
-                ax.text(0.5, 0.5, f"{label(metric)}: no finite value\n(undefined for every geometry; see the table)",
-                        ha="center", va="center", transform=ax.transAxes, fontsize=8)
-            ax.set_ylabel(f"max {label(metric)}", fontsize=8)
-            ax.set_xlabel("WR = w / w_spine" if family == "chordwise" else "LR = l / l_root")
-            ax.set_title(family, fontsize=9)
+            ax.plot([r["ratio"] for r in rows], [r[metric] for r in rows], "o-", ms=3)
+            ax.set_ylabel(f"max {label(metric)}")
+            ax.set_xlabel(RATIO_LABELS.get(family, "ratio"))
+            ax.set_title(f"{family} flaps")
+    title = "Sweep: per geometry, the maximum over the controllers"
+    if left_out:
+        why = "not drawn: " + ", ".join(label(m) for m in left_out) + " (undefined for every geometry"
+        title += "\n" + textwrap.fill(why + (f": {note})" if note else ")"), 45 * len(families))
+    fig.suptitle(title, fontsize=9)
     fig.tight_layout()
     return _save(fig, path)
+
+
+#: The sweep's abscissa per family (mathtext subscripts, not code names).
+RATIO_LABELS = {"chordwise": r"WR = $w/w_\mathrm{spine}$", "spanwise": r"LR = $l/l_\mathrm{root}$"}
 
 
 #: Axis labels for the names the optimizer's tables use (a figure speaks to a reader, not to code).
 LABELS = {
     "thrust_ratio": "TR", "mean_thrust_N": "mean thrust (N)", "mean_thrust_mN": "mean thrust (mN)",
-    "normalized_thrust": "normalized thrust T/T_ref", "mean_speed_m_s": "mean speed (m/s)",
-    "t_up_s": "t_up (s)", "t_hold_up_s": "t_hold_up (s)", "t_down_s": "t_down (s)", "t_hold_down_s": "t_hold_down (s)",
+    "normalized_thrust": r"normalized thrust $\bar{T}/\bar{T}_\mathrm{ref}$", "mean_speed_m_s": "mean speed (m/s)",
+    "t_up_s": r"$t_\mathrm{up}$ (s)", "t_hold_up_s": r"$t_\mathrm{hold,up}$ (s)", "t_down_s": r"$t_\mathrm{down}$ (s)",
+    "t_hold_down_s": r"$t_\mathrm{hold,down}$ (s)",
     "period_s": "period (s)", "amplitude_deg": "amplitude, peak to peak (°)",
-    "log10_up_down": "log10 t_up/t_down", "log10_hold_up_down": "log10 t_hold_up/t_hold_down",
-    "log10_hold_move": "log10 holds/moves",
+    "log10_up_down": r"$\log_{10}(t_\mathrm{up}/t_\mathrm{down})$",
+    "log10_hold_up_down": r"$\log_{10}(t_\mathrm{hold,up}/t_\mathrm{hold,down})$",
+    "log10_hold_move": r"$\log_{10}$(holds/moves)",
 }
 
 
@@ -116,8 +133,4 @@ def _sd(row: Mapping, key: str) -> float:
 
 
 def _save(fig: plt.Figure, path: str | Path) -> Path:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, dpi=120)

@@ -37,6 +37,23 @@ def baseline_point(space: SearchSpace, like: Mapping[str, float]) -> dict[str, f
     return point
 
 
+def baseline_outside_box(space: SearchSpace, like: Mapping[str, float] | None = None) -> str | None:
+    """What to tell a user whose search box excludes the baseline (the paper's symmetric stroke),
+    or None when the box holds it: the optimizer never proposes the baseline, so a short study can
+    end below it. `like` gives the extra, non-stroke variables (default: the box's centre)."""
+    like = like if like is not None else {v.name: 0.5 * (v.low + v.high) for v in space.variables}
+    problems = space.violations(baseline_point(space, like))
+    if not problems:
+        return None
+    stroke = symmetric_stroke(space.period_s, space.amplitude_deg)
+    min_ramp_s = space.servo.min_ramp_s(space.amplitude_deg)
+    servo = (f"; the servo's box wants ramps >= {min_ramp_s:.3f} s for {space.amplitude_deg:g}° at "
+             f"{space.servo.max_rate_rad_s:g} rad/s (--servo-rate)" if stroke.t_up_s < min_ramp_s else "")
+    return (f"the baseline lies outside the search box: {'; '.join(problems)} (the baseline is the symmetric stroke, "
+            f"ramps {stroke.t_up_s:g} s, holds {stroke.t_hold_up_s:g} s{servo}); it is validated beside the optimum, "
+            "but the optimizer cannot propose it, so a short study may end below it")
+
+
 def summarize(
     objective: Objective,
     space: SearchSpace,
@@ -107,6 +124,7 @@ def study_summary(
         "baseline_mean_thrust_N": baseline["mean_thrust_N"],
         "baseline_mean_thrust_sd_N": baseline["mean_thrust_sd_N"],
         "baseline_servo_violations": space.violations(baseline_point(space, best.point)),
+        "baseline_outside_search_box": baseline_outside_box(space, best.point),
         "validation": {"repeats": repeats, "periods": periods, "best": dict(validated), "baseline": dict(baseline)},
         "measurement": plan.describe(),
         "space": space.describe(),

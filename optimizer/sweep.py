@@ -277,6 +277,20 @@ def tabulate(runs: Iterable[dict]) -> list[dict]:
     return table
 
 
+def normalized_thrust_note(runs: Iterable[dict], table: Sequence[dict]) -> str | None:
+    """Why the table's normalized thrust is undefined for every geometry (None when some is
+    defined): what the bare spine / root part made under the controllers run."""
+    if any(math.isfinite(r["normalized_thrust"]) for r in table):
+        return None
+    references = [r for r in runs if r["reference"] and not r["error"]]
+    if not references:
+        return "no run of the bare spine or root part succeeded, so there is no reference thrust"
+    largest = max(r["mean_thrust_N"] for r in references)
+    return (f"the bare spine or root part (a plain feather) made at most {1e3 * largest:.2f} mN of mean thrust "
+            f"under every controller run, below the {1e3 * MIN_REFERENCE_THRUST_N:g} mN a reference thrust needs "
+            "to be told from zero")
+
+
 def write_csv(rows: Sequence[dict], path: str | Path) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)

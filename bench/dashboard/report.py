@@ -105,6 +105,8 @@ def plot_all(data: dict[str, Any], out: Path) -> dict[str, str]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from ..cosim.plotstyle import save_figure
+
     figures: dict[str, str] = {}
     markers = "os^vD<>ph*"
     m = data.get("dashboard_measurements")
@@ -114,7 +116,7 @@ def plot_all(data: dict[str, Any], out: Path) -> dict[str, str]:
         panels.append(("kinematic, plain N=10 (this dashboard)", m["work_precision"]["runs"], "pointwise_error",
                        "max pointwise thrust error / peak"))
     for entry in (wp or {}).get("scenes", []):
-        panels.append((f"{entry['scene']}, chordwise (bench/cosim_work_precision.py)", entry["runs"], "error",
+        panels.append((f"{entry['scene']}, chordwise (the work-precision bench)", entry["runs"], "error",
                        f"relative error of {entry['metric']} (chaos floor {entry['chaos_floor']['estimate']:.1e})"))
     if panels:
         fig, axes = plt.subplots(1, len(panels), figsize=(6.2 * len(panels), 4.6), squeeze=False,
@@ -133,8 +135,7 @@ def plot_all(data: dict[str, Any], out: Path) -> dict[str, str]:
             ax.legend(fontsize=7)
         fig.suptitle("Work-precision per scene and coupling mode (dashed: references)")
         path = out / "dashboard_work_precision.png"
-        fig.savefig(path, dpi=100)
-        plt.close(fig)
+        save_figure(fig, path, dpi=100)
         figures["work_precision"] = path.name
     if m:
         cg = m["cost_growth"]
@@ -152,8 +153,7 @@ def plot_all(data: dict[str, Any], out: Path) -> dict[str, str]:
         axes[0].set_title("cost growth with N (plain feather, 1 period of 1.5 s)")
         axes[1].set_title("cost growth with simulated duration (plain, N = 10)")
         path = out / "dashboard_cost_growth.png"
-        fig.savefig(path, dpi=100)
-        plt.close(fig)
+        save_figure(fig, path, dpi=100)
         figures["cost_growth"] = path.name
     s = data.get("summary", {})
     bars = []
@@ -175,6 +175,7 @@ def plot_all(data: dict[str, Any], out: Path) -> dict[str, str]:
                 axes[0].bar([i + j * width for i in range(len(names))], vals, width, label=label)
             axes[0].set_xticks([i + 0.4 - width / 2 for i in range(len(names))], names, fontsize=8)
             axes[0].set_yscale("log")
+            axes[0].set_xlabel("feather model")
             axes[0].set_ylabel("µs per call (from Python)")
             axes[0].set_title("FMU call overhead")
             axes[0].legend(fontsize=7)
@@ -185,6 +186,7 @@ def plot_all(data: dict[str, Any], out: Path) -> dict[str, str]:
             axes[1].bar([k for k, _ in items], [v for _, v in items], color=["C0", "C1"][: len(items)])
             for goal, x in ((60.0, 0), (120.0, 1)):
                 axes[1].plot([x - 0.4, x + 0.4], [goal, goal], "k--", lw=1)
+            axes[1].set_xlabel("task")
             axes[1].set_ylabel("wall time (s)")
             axes[1].set_title("optimizer and sweep (dashed: goals)" + (" — estimated" if "estimate" in opt["source"] else ""),
                               fontsize=9)
@@ -192,12 +194,12 @@ def plot_all(data: dict[str, Any], out: Path) -> dict[str, str]:
             rates = [(k, v) for k, v in hil.items() if isinstance(v, dict)]
             axes[2].bar([k for k, _ in rates], [v["achieved_hz"] for _, v in rates], color="C2", label="achieved")
             axes[2].plot(range(len(rates)), [float(k.split()[0]) for k, _ in rates], "k_", ms=30, mew=2, label="target")
+            axes[2].set_xlabel("target loop rate (Hz)")
             axes[2].set_ylabel("loop rate (Hz)")
             axes[2].set_title("HIL loop rate over Modbus loopback")
             axes[2].legend(fontsize=8)
         path = out / "dashboard_overheads.png"
-        fig.savefig(path, dpi=100)
-        plt.close(fig)
+        save_figure(fig, path, dpi=100)
         figures["overheads"] = path.name
     return figures
 

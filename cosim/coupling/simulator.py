@@ -42,8 +42,12 @@ from .weak import WeakCoupling
 
 def build_units(plan: Plan) -> dict[str, Unit]:
     """A runtime unit for every instantiated block that computes something (recorders do not)."""
+    from ...fmu_src.build_progress import next_block, number_builds
+
     master = plan.scene.master
     units: dict[str, Unit] = {}
+    number_builds(sum(1 for n in plan.instantiate if plan.blocks[n].model is not None and not plan.blocks[n].records_only
+                      and master.backend != "casadi"))
     for name in plan.instantiate:
         rb = plan.blocks[name]
         if rb.records_only:
@@ -60,6 +64,7 @@ def build_units(plan: Plan) -> dict[str, Unit]:
             except ImportError as exc:
                 raise SceneError(f"block '{name}': FMU export is not available ({exc}); "
                                  "set master.backend = casadi to run models in-process") from None
+            next_block()
             path = cached_fmu(rb.model, build_fmu, f"block '{name}'")
             info = model_fmu_info(rb.model, Path(path), name)
             units[name] = FmuUnit(name, info, rb.parameters, _fmu_mode(master.coupling, info, name))

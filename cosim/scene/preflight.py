@@ -39,6 +39,13 @@ def _human(n_bytes: float) -> str:
     return f"{n_bytes:.1f} PiB"
 
 
+def run_length_setting(plan: Plan) -> str:
+    """The key that sets the run's length, as the user set it: master.t_end_s when it is set
+    (it overrides master.periods), else master.periods."""
+    master = plan.scene.master
+    return f"master.t_end_s = {master.t_end_s:g}" if master.t_end_s else f"master.periods = {master.periods:g}"
+
+
 def check_run_size(plan: Plan, available_bytes: int | None = None) -> None:
     """Refuse a run whose recorded rows would not fit in memory, naming the run length."""
     master = plan.scene.master
@@ -48,9 +55,7 @@ def check_run_size(plan: Plan, available_bytes: int | None = None) -> None:
     need = n_rows * (_BYTES_PER_ROW + _BYTES_PER_VALUE * n_cols)
     have = available_memory_bytes() if available_bytes is None else available_bytes
     if need > MEMORY_FRACTION * have:
-        length = (f"master.t_end_s = {master.t_end_s:g}" if master.t_end_s
-                  else f"master.periods = {master.periods:g}")
-        raise SceneError(f"{length} ({plan.t_end_s:.3g} s of simulated time) would record "
+        raise SceneError(f"{run_length_setting(plan)} ({plan.t_end_s:.3g} s of simulated time) would record "
                          f"{n_rows:.3g} points x {n_cols} signals, about {_human(need)}; "
                          f"{_human(have)} of memory is available: shorten the run, record "
                          "fewer signals (--record) or coarsen the recording grid",
@@ -77,5 +82,6 @@ def check_metric_window(plan: Plan) -> None:
     if metrics.settle_periods + 1 > run_periods + 1e-9:
         raise SceneError(f"metrics.settle_periods = {metrics.settle_periods:g} leaves no whole "
                          f"period to measure in a run of {run_periods:.3g} periods; lower it "
-                         f"to at most {max(run_periods - 1, 0):.3g} or lengthen master.periods",
+                         f"to at most {max(run_periods - 1, 0):.3g} or lengthen the run "
+                         f"({run_length_setting(plan)})",
                          plan.scene.name)

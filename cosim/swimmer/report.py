@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from .run_figure import run_figure
+from ..plotstyle import save_figure
 from ..jsonable import json_safe
 
 SUMMARY_ROWS = (
@@ -165,4 +166,4 @@ def _cell(value: Any) -> str:
 
 def plot_run(result: Any, path: str | Path) -> None:
     """The run's figure (featherstar.cosim.swimmer.run_figure) as a PNG at `path`."""
-    run_figure(result).savefig(path, dpi=110, format="png")
+    save_figure(run_figure(result), path)

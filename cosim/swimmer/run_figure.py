@@ -53,9 +53,7 @@ def _excluded(summary: dict[str, Any]) -> list[tuple[int, float, float, str]]:
 
 def run_figure(result: Any) -> Any:
     """The run's figure (a matplotlib Figure; the caller saves and closes it)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
+    from ..plotstyle import robust_ylim   # first: it chooses the headless backend
     import matplotlib.pyplot as plt
     from matplotlib.ticker import MaxNLocator
 
@@ -75,13 +73,8 @@ def run_figure(result: Any) -> Any:
         if "window_s" in s:
             a, b = s["window_s"]
             ax.axvspan(a, b, color="0.9", zorder=-1, label="metric window")
-            inside = (t >= a) & (t <= b) & np.isfinite(thrust)
-            if inside.any():
-                lo, hi = 1e3 * float(np.min(thrust[inside])), 1e3 * float(np.max(thrust[inside]))
-                pad = 0.15 * max(hi - lo, 1e-6)
-                if np.nanmin(1e3 * thrust) < lo - 3 * pad or np.nanmax(1e3 * thrust) > hi + 3 * pad:
-                    ax.set_ylim(lo - pad, hi + pad)
-                    ax.set_ylabel("thrust (mN)\n(start transient clipped)")
+            if robust_ylim(ax, 1e3 * thrust, inside=(t >= a) & (t <= b)):
+                ax.set_ylabel("thrust (mN)\n(start transient clipped)")
         for k, (number, start, end, reasons) in enumerate(excluded):
             ax.axvspan(start, end, color="C3", alpha=0.2, zorder=-1,
                        label="excluded period" if k == 0 else None)
@@ -105,10 +98,11 @@ def run_figure(result: Any) -> Any:
     if per:
         numbers = np.arange(1, len(per) + 1)
         gone = {number for number, *_ in excluded}
-        colors = ["0.75" if n in gone else "C0" for n in numbers]
-        bars.bar(numbers, per, color=colors, label="TR of the period")
-        if gone:
-            bars.bar([], [], color="0.75", label="excluded period")
+        kept = [k for k, n in enumerate(numbers) if n not in gone]
+        dropped = [k for k, n in enumerate(numbers) if n in gone]
+        bars.bar(numbers[kept], np.asarray(per, float)[kept], color="C0", label="TR of the period")
+        if dropped:
+            bars.bar(numbers[dropped], np.asarray(per, float)[dropped], color="0.75", label="excluded period")
         bars.axhline(s.get("thrust_ratio", np.nan), color="C1", label="window TR")
         bars.axhline(1.0, color="k", lw=0.5)
         bars.legend(loc="lower right", fontsize=7)

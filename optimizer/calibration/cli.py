@@ -220,6 +220,8 @@ def _fit_figure(result: Calibration, runs: list[str], path: Path, form: str) -> 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from ...cosim.plotstyle import save_figure
+
     fig, ax = plt.subplots(figsize=(7, 3.2))
     for k, run in enumerate(runs):
         ax.plot(result.bin_times_s, result.measured_N[k] * 1e3, ".", ms=3, color=f"C{k}", label=f"measured {Path(run).name}")
@@ -229,6 +231,4 @@ def _fit_figure(result: Calibration, runs: list[str], path: Path, form: str) -> 
     ax.set_title(f"calibration: rms residual {result.rms_residual_N * 1e3:.1f} mN, R² {result.r_squared:.3f}", fontsize=9)
     ax.legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, dpi=120)

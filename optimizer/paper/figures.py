@@ -16,8 +16,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402  (after choosing the headless backend)
 import numpy as np  # noqa: E402
 
+from ...cosim.plotstyle import save_figure  # noqa: E402
 from ...cosim.swimmer.stroke import Stroke, root_motion  # noqa: E402
-from ..figures import progress_figure, validation_figure  # noqa: E402
+from ..figures import RATIO_LABELS, progress_figure, validation_figure  # noqa: E402
 from ..space import symmetric_stroke  # noqa: E402
 from ..study import validation_rows  # noqa: E402
 
@@ -28,9 +29,7 @@ PAPER_TR_SYMMETRIC = {"plain": 1.0, "chordwise": 2.0, "spanwise": 2.0}
 
 
 def _save(fig: plt.Figure, path: Path) -> Path:
-    fig.savefig(path, dpi=DPI)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, dpi=DPI)
 
 
 def _missing(ax: plt.Axes, text: str) -> None:
@@ -43,7 +42,7 @@ def fig3_sweep(table: list[Mapping], path: Path) -> Path:
     from .plan import FAMILY_RATIOS
 
     metrics = [("thrust_ratio", "max TR (Eq. 3)", 1.0), ("mean_thrust_N", "max T̄ (mN)", 1e3),
-               ("normalized_thrust", "max T̄ / T̄_ref", 1.0)]
+               ("normalized_thrust", r"max $\bar{T}/\bar{T}_\mathrm{ref}$", 1.0)]
     # A metric undefined for every geometry (the normalized thrust, when no reference thrust is
     # positive) gets no panel; the report's caption says why.
     metrics = [m for m in metrics if any(math.isfinite(r[m[0]]) for r in table)] or metrics[:1]
@@ -66,7 +65,7 @@ def fig3_sweep(table: list[Mapping], path: Path) -> Path:
                 ax.axhline(1.0, color="k", lw=0.5)
                 ax.set_title(f"{family} flaps", fontsize=9)
                 ax.legend(fontsize=7, loc="best")
-        axes[-1][column].set_xlabel("WR = w / w_spine" if family == "chordwise" else "LR = l / l_root")
+        axes[-1][column].set_xlabel(RATIO_LABELS[family])
     fig.tight_layout()
     return _save(fig, path)
 
@@ -111,6 +110,7 @@ def fig5_symmetric(symmetric: Mapping[str, Mapping], path: Path) -> Path:
     bars.plot(x, [PAPER_TR_SYMMETRIC[f] for f in MORPHOLOGIES], "kD", ms=6, label="paper (≈)")
     bars.axhline(1.0, color="k", lw=0.5, ls=":")
     bars.set_xticks(x, [LABELS[f] for f in MORPHOLOGIES], fontsize=8)
+    bars.set_xlabel("feather")
     bars.set_ylabel("TR (mean ± sd over sets)")
     bars.legend(fontsize=7)
     fig.suptitle(f"Fig. 5: symmetric stroke (ramps 0.25 s, holds 0.5 s, period {PERIOD_S:g} s); "
@@ -204,6 +204,7 @@ def fig9_robot(robot: Mapping[str, Mapping], path: Path) -> Path:
     ax.axhline(2.5, color="k", ls="--", lw=0.8, label="paper: ≈ 2.5 cm/s (chordwise)")
     ax.axhline(0, color="k", lw=0.5)
     ax.set_xticks(np.arange(3), [LABELS[f] for f in MORPHOLOGIES], fontsize=8)
+    ax.set_xlabel("feather")
     ax.set_ylabel("mean speed (cm/s)")
     ax.legend(fontsize=7, ncol=4)
     fig.suptitle("Fig. 9: robot on its rail with the test bed's best, baseline and worst controllers", fontsize=9)

@@ -89,6 +89,9 @@ def _run_and_report(args: argparse.Namespace, scene, overrides, outputs, stop) -
     from .cosim.swimmer.report import summary_table
     from .cosim.swimmer.run import run_scene
 
+    from .fmu_src.build_progress import set_quiet
+
+    set_quiet(args.quiet)
     runner = run_scene
     if args.hardware:   # streamed, or device-timed when the URLs say clock=device
         from .hil.timed_run import run_bench_scene as runner
@@ -115,7 +118,11 @@ def _run_and_report(args: argparse.Namespace, scene, overrides, outputs, stop) -
         print(f"featherstar: error: {one_line(exc)}{where}", file=sys.stderr)
         return EXIT_FOR_SIGNAL.get(exc.interrupted or "", 2)
     print(summary_table(result.summary))
-    for note in result.info.get("notes", []):
+    for line in stroke_lines(result.scene):
+        print(line)
+    # The plan's notes (a parameter shared between blocks, a unit check waived) describe the scene
+    # as designed, the same on every run: summary.json keeps them, -v prints them.
+    for note in result.info.get("notes", []) if args.verbose else ():
         print(f"  note: {note}")
     if args.out:
         paths = _write(result, args.out, figure=not args.no_figure)
@@ -125,6 +132,22 @@ def _run_and_report(args: argparse.Namespace, scene, overrides, outputs, stop) -
               " (see the summary)", file=sys.stderr)
         return 2
     return 0
+
+
+def stroke_lines(scene) -> list[str]:
+    """The console's line per stroke block: its times and its amplitude, which is peak to peak
+    (amplitude_deg = 60 swings the root between -30 and +30 degrees)."""
+    from .cosim.swimmer.controller import resolve_stroke
+
+    lines = []
+    for block in scene.blocks:
+        if block.kind != "stroke":
+            continue
+        s = resolve_stroke(block.settings, block.overrides, block.name)
+        lines.append(f"  {'stroke (' + block.name + ')':<30} up {s.t_up_s:g} s, hold {s.t_hold_up_s:g} s, "
+                     f"down {s.t_down_s:g} s, hold {s.t_hold_down_s:g} s; amplitude {s.amplitude_deg:g}° "
+                     f"peak to peak (±{s.amplitude_deg / 2:g}°)")
+    return lines
 
 
 def _cmd_scenes(args: argparse.Namespace) -> int:
@@ -176,7 +199,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     run.add_argument("--allow-code", action="store_true",
                      help="let an SSP package name Python code (block factories, model functions) other than "
                           "featherstar's own blocks; a package is data and is refused otherwise (see docs/ssp.md)")
-    run.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    run.add_argument("-q", "--quiet", action="store_true", help="no progress bar (a cold FMU build still says "
+                     "what it built and how long it took)")
+    run.add_argument("-v", "--verbose", action="store_true",
+                     help="also print the plan's notes (parameters shared between blocks, unit checks waived; "
+                          "they are in summary.json's info either way)")
     run.set_defaults(func=_cmd_run)
     scenes = sub.add_parser("scenes", help="list the shipped scenes, or every settable key of one",
                             description="Without SCENE: the shipped scenes. With SCENE: every key `--set` takes "

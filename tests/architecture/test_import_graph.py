@@ -146,6 +146,7 @@ ROOMS = {
     "featherstar.cosim.errors": "cosim.base",
     "featherstar.cosim.jsonable": "cosim.base",
     "featherstar.cosim.sccs": "cosim.base",
+    "featherstar.cosim.plotstyle": "cosim.base",
     "featherstar.cosim.framework": "cosim.framework",
     "featherstar.cosim.fmi": "cosim.fmi",
     "featherstar.cosim.scene": "cosim.scene",
