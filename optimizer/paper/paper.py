@@ -14,161 +14,24 @@ Figures: `paper_figures`; the claims table and the markdown: `paper_report`.
 """
 from __future__ import annotations
 
-import dataclasses
 import json
-import math
 import os
-import tempfile
 import time
 from pathlib import Path
 from typing import Any, Callable
 
-import numpy as np
-
 from ...cosim.jsonable import json_safe
-from ..bayes import optimize
-from ..evaluation import VALIDATION_STREAM, MeasurementPlan, noise_rng
 from ..executor import Executor, Progress, make_executor
-from ..loadcell import LoadCell, measure
-from ..objective import SceneObjective
 from ..postprocess import optional
-from ..space import stroke_overrides, stroke_space, symmetric_stroke
-from ..study import summarize
-from ..sweep import Task, run_task, tabulate
-from .plan import (
-    FULL,
-    MORPHOLOGIES,
-    PERIOD_S,
-    QUICK,
-    ROBOT_SAMPLE_S,
-    Resolution,
-    StudySpec,
-    feather_overrides,
-    study_specs,
-    sweep_geometries,
-)
+from ..sweep import Task, tabulate
+from . import family as model_family
+from .plan import FULL, MORPHOLOGIES, PERIOD_S, QUICK, Resolution, study_specs, sweep_geometries
 from .tasklog import TaskLog
+from .tasks import guarded, robot_controller, robot_task, study_task, sweep_task, symmetric_task
 
-# ---- tasks: top-level functions, run in worker processes; each returns plain data ----
-
-def _guarded(fn: Callable[..., dict], *args: Any) -> dict:
-    """Exceptions become data (some of ours do not pickle, and one failure must not sink the report)."""
-    started = time.perf_counter()
-    try:
-        out = fn(*args)
-    except Exception as exc:  # noqa: BLE001 — reported in the report's failures section
-        return {"error": f"{type(exc).__name__}: {exc}", "wall_s": time.perf_counter() - started, "sim_s": 0.0}
-    out.setdefault("wall_s", time.perf_counter() - started)
-    return out
-
-
-def _plan(res: Resolution) -> MeasurementPlan:
-    return MeasurementPlan(settle_periods=res.settle_periods, periods=res.periods, seed=res.seed)
-
-
-def study_task(spec: StudySpec, res: Resolution) -> dict:
-    objective = SceneObjective("testbed", feather_overrides(spec.family, spec.ratio))
-    space = stroke_space(spec.period_s)
-    plan = _plan(res)
-    # The log is the worker's scratch (the task may run on another host); the result carries it all.
-    with tempfile.TemporaryDirectory(prefix="featherstar-paper-") as log_dir:
-        run = optimize(
-            objective, space, Path(log_dir) / f"{spec.key}.jsonl", iterations=spec.iterations,
-            maximize=spec.maximize, plan=plan, n_initial_points=min(res.initial_points, spec.iterations),
-            context={"scene": "testbed", "overrides": feather_overrides(spec.family, spec.ratio)},
-        )
-    best = run.best
-    stroke = space.stroke(best.point)
-    out = {
-        "spec": dataclasses.asdict(spec),
-        "evaluations": [{"thrust_ratio": e["thrust_ratio"], "mean_thrust_N": e["mean_thrust_N"],
-                         "params": e["params"]} for e in run.evaluations],
-        "estimates": [None if e is None else {"thrust_ratio": e["thrust_ratio"], "params": e["params"]}
-                      for e in run.estimates],
-        "names": list(space.names),
-        "best_point": best.point, "estimated_thrust_ratio": best.value, "estimated_thrust_ratio_sd": best.sd,
-        "best_overrides": space.overrides(best.point),
-        "stroke": dataclasses.asdict(stroke),
-        "sim_s": len(run.evaluations) * (plan.settle_periods + plan.periods) * spec.period_s,
-    }
-    if spec.validate:
-        summary = summarize(objective, space, run, maximize=spec.maximize, plan=plan,
-                            repeats=res.validation_repeats, periods=res.validation_periods)
-        out["summary"] = summary
-        out["sim_s"] += 2 * (plan.settle_periods + res.validation_repeats * res.validation_periods) * spec.period_s
-    return out
-
-
-def symmetric_task(family: str, res: Resolution) -> dict:
-    """Fig. 5: one long run under the symmetric stroke, read like the bench (sets of periods); the
-    run's own figure comes back as PNG bytes (the task may run on another host)."""
-    from ...cosim import run_scene
-    from ...cosim.swimmer.report import plot_run
-
-    settle, sets, per = res.settle_periods, res.validation_repeats, res.validation_periods
-    load_cell = LoadCell()
-    t_end = (settle + sets * per) * PERIOD_S + 2.0 / load_cell.sample_rate_hz
-    result = run_scene("testbed", {**feather_overrides(family), **stroke_overrides(symmetric_stroke(PERIOD_S)),
-                                   "master.t_end_s": t_end, "metrics.settle_periods": settle})
-    t, thrust = result.time, result["feather.thrust_N"]
-    rng = noise_rng(res.seed, VALIDATION_STREAM, (100 + MORPHOLOGIES.index(family),))
-    sets_measured = measure(t, thrust, PERIOD_S, load_cell, rng, settle_periods=settle, periods=per, windows=sets)
-    with tempfile.TemporaryDirectory(prefix="featherstar-paper-") as tmp:
-        plot_run(result, Path(tmp) / "run.png")
-        run_png = (Path(tmp) / "run.png").read_bytes()
-    window = t >= settle * PERIOD_S
-    fold = result.signals.get("feather.flap_angle_rad")
-    ratios = np.array([m.thrust_ratio for m in sets_measured])
-    thrusts = np.array([m.mean_thrust_N for m in sets_measured])
-    return {
-        "family": family, "time_s": t, "thrust_N": thrust, "angle_rad": result["servo.angle_rad"],
-        "thrust_ratio": float(ratios.mean()), "thrust_ratio_sd": float(ratios.std(ddof=1)) if sets > 1 else 0.0,
-        "mean_thrust_N": float(thrusts.mean()), "mean_thrust_sd_N": float(thrusts.std(ddof=1)) if sets > 1 else 0.0,
-        "sets": [{"thrust_ratio": m.thrust_ratio, "mean_thrust_N": m.mean_thrust_N} for m in sets_measured],
-        "noise_free_thrust_ratio": result.summary.get("thrust_ratio"),
-        "peak_thrust_N": [float(thrust[window].min()), float(thrust[window].max())],
-        "max_fold_deg": None if fold is None or family == "plain" else float(np.degrees(fold[window].max())),
-        "sim_s": t_end, "run_png": run_png,
-    }
-
-
-def sweep_task(task: Task, res: Resolution) -> dict:
-    plan = MeasurementPlan(load_cell=LoadCell(noise_sd_N=0.0), settle_periods=res.sweep_settle_periods,
-                           periods=res.sweep_periods, seed=res.seed)
-    row = run_task(SceneObjective("kinematic"), task, plan, 60.0)
-    period = task.controller.stroke(60.0).period_s
-    return {"row": row, "sim_s": (res.sweep_settle_periods + res.sweep_periods) * period}
-
-
-def robot_task(family: str, controller: str, overrides: dict, res: Resolution) -> dict:
-    """Fig. 9: the two-feather robot on its rail with a controller found on the test bed."""
-    from ...cosim import run_scene
-
-    result = run_scene("robot", {**feather_overrides(family), **overrides, "master.periods": res.robot_periods,
-                                 "metrics.settle_periods": res.robot_settle_periods})
-    t = result.time
-    keep = np.searchsorted(t, np.arange(t[0], t[-1], ROBOT_SAMPLE_S))
-    s = result.summary
-    return {
-        "family": family, "controller": controller, "controller_overrides": overrides,
-        "time_s": t[keep], "position_m": result["robot.body_position_m"][keep],
-        "speed_m_s": result["robot.body_speed_m_s"][keep],
-        "mean_speed_m_s": s.get("mean_speed_m_s", math.nan), "thrust_ratio": s.get("thrust_ratio", math.nan),
-        "mean_thrust_N": s.get("mean_thrust_N", math.nan), "sim_s": float(t[-1] - t[0]),
-    }
-
+__all__ = ["FULL", "QUICK", "collect", "generate_report", "run_experiments", "study_specs", "sweep_geometries"]
 
 # ---- orchestration ----
-
-def _robot_controller(family: str, controller: str, results: dict) -> dict | str:
-    """The controller's overrides, or why it is missing."""
-    if controller == "baseline":
-        return stroke_overrides(symmetric_stroke(PERIOD_S))
-    study = results.get(f"study:{family}-{'max' if controller == 'best' else 'min'}", {})
-    if "best_overrides" not in study:
-        return f"skipped: its study failed ({study.get('error', 'no result')})"
-    return {k: v for k, v in study["best_overrides"].items() if k.startswith("controller.")}
-
 
 def run_experiments(
     res: Resolution, out_dir: Path, *, progress: bool = True, executor: Executor | None = None, resume: bool = False
@@ -183,11 +46,13 @@ def run_experiments(
     # the backlog is ours (the executor only ever holds one task per slot) so robot runs can jump it.
     order = sorted(specs.values(), key=lambda s: (s.family == "plain", s.validate is False, -s.period_s))
     backlog: list[tuple[str, Callable, tuple]] = [(f"study:{s.key}", study_task, (s, res)) for s in order]
-    backlog += [(f"robot:{f}-baseline", robot_task, (f, "baseline", _robot_controller(f, "baseline", {}), res))
+    backlog += [(f"robot:{f}-baseline", robot_task, (f, "baseline", robot_controller(f, "baseline", {}), res))
                 for f in MORPHOLOGIES]
     backlog += [(f"fig5:{f}", symmetric_task, (f, res)) for f in MORPHOLOGIES]
+    backlog += model_family.backlog(res)   # the model family's runs that wait on no study
     backlog += [(f"sweep:{t.index}", sweep_task, (t, res)) for t in sweep_tasks]
     labels = [label for label, _, _ in backlog] + [f"robot:{f}-{c}" for f in MORPHOLOGIES for c in ("best", "worst")]
+    labels += sorted(set(model_family.labels(res)) - set(labels))
     log = TaskLog(out_dir, res.describe(), labels, resume=resume)
     results: dict[str, dict] = dict(log.done)
     backlog = [item for item in backlog if item[0] not in results]
@@ -203,7 +68,7 @@ def run_experiments(
                 slots = executor.slots
                 while backlog and len(pending) < slots:
                     label, fn, args = backlog.pop(0)
-                    pending[executor.submit(_guarded, fn, *args)] = label
+                    pending[executor.submit(guarded, fn, *args)] = label
                 for future in executor.wait_any(pending):
                     label = pending.pop(future)
                     results[label] = result = future.result()
@@ -227,8 +92,13 @@ def run_experiments(
 
 
 def _follow_up(label: str, results: dict, backlog: list, bar: Progress, running: int, res: Resolution) -> None:
-    """After a best or worst study: queue the robot run with its controller (first in line), or
-    record why it cannot run; nothing if that robot run is already done."""
+    """After a best or worst study: queue the robot run with its controller and the model family's
+    runs of its optimum (first in line), or record why they cannot run; nothing for those done."""
+    items, failed = model_family.follow_ups(label, results, res)
+    backlog[:0] = items
+    for failed_label, result in failed.items():
+        results[failed_label] = result
+        bar.update(running=running, failed=True, note=failed_label)
     kind, _, key = label.partition(":")
     if kind != "study" or key not in (f"{f}-{m}" for f in MORPHOLOGIES for m in ("max", "min")):
         return
@@ -237,7 +107,7 @@ def _follow_up(label: str, results: dict, backlog: list, bar: Progress, running:
     robot_label = f"robot:{family}-{controller}"
     if robot_label in results:
         return
-    overrides = _robot_controller(family, controller, results)
+    overrides = robot_controller(family, controller, results)
     if isinstance(overrides, str):
         results[robot_label] = {"error": overrides, "wall_s": 0.0, "sim_s": 0.0}
         bar.update(running=running, failed=True, note=robot_label)
@@ -257,7 +127,7 @@ def planned_simulated_s(res: Resolution) -> float:
     geometries = sum(len(sweep_geometries(f, res.sweep_geometries)) for f in ("chordwise", "spanwise"))
     total += geometries * sum((res.sweep_settle_periods + res.sweep_periods) * c.stroke(60.0).period_s
                               for c in res.sweep_controllers)
-    return total
+    return total + model_family.planned_simulated_s(res)
 
 
 def collect(results: dict) -> dict:
@@ -269,6 +139,7 @@ def collect(results: dict) -> dict:
         "symmetric": {k[5:]: r for k, r in results.items() if k.startswith("fig5:")},
         "studies": {k[6:]: r for k, r in results.items() if k.startswith("study:")},
         "robot": {k[6:]: r for k, r in results.items() if k.startswith("robot:")},
+        "family": model_family.collect(results),
         "failures": {k: r["error"] for k, r in results.items() if "error" in r},
     }
 
@@ -282,6 +153,7 @@ def generate_report(
     Every finished experiment is logged in DIR/tasks.jsonl; `resume` runs only those it lacks."""
     from .figures import draw_all
     from .report import claims, write_markdown
+    from .robustness import family_table
 
     res = resolution or (QUICK if quick else FULL)
     out_dir = Path(out_dir)
@@ -290,12 +162,14 @@ def generate_report(
     results, timing = run_experiments(res, out_dir, progress=progress, executor=executor, resume=resume)
     data = collect(results)
     timing["total_wall_s"] = time.time() - started
-    payload = {"resolution": res.describe(), "timing": timing, "started_unix": started, "claims": [],
+    payload = {"resolution": res.describe(), "family_members": model_family.describe(res), "timing": timing,
+               "started_unix": started, "claims": [],
                "figures": {}, **data}
     # The results first: the claims, figures and markdown after them are post-processing, whose
     # failure is a warning and costs none of the hours of experiments in paper.json.
     _write_payload(out_dir, payload)
     table = optional("the claims table", claims, data) or []
+    table = optional("the model family's ranges", family_table, data, table, res, claims) or table
     figures = optional("the figures", draw_all, data, res, out_dir) or {}
     payload.update(claims=table, figures={k: p.name for k, p in figures.items()})
     _write_payload(out_dir, payload)

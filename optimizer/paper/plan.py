@@ -18,6 +18,40 @@ ROBOT_SAMPLE_S = 0.02               # robot traces kept for Fig. 9
 
 
 @dataclass(frozen=True)
+class Member:
+    """One model of the feather's model family: the default model with `overrides`; `morphologies`:
+    the feathers it changes (a hinge stiffness does not exist on the plain feather)."""
+
+    name: str
+    overrides: tuple[tuple[str, str | float], ...]
+    what: str
+    morphologies: tuple[str, ...] = ("plain", "chordwise", "spanwise")
+
+    def applies(self, family: str) -> bool:
+        return family in self.morphologies
+
+
+_FLAPPED = ("chordwise", "spanwise")
+# One at a time from the default: the three wake laws (build option `wake`, docs/model.md "Wake
+# memory") and the ends of the coefficients' documented ranges (docs/model.md, "Coefficients").
+MEMBERS = (
+    Member("wake-relative", (("feather.wake", "relative"),), "wake memory, the plate leaves its wake (u|s|)"),
+    Member("wake-self", (("feather.wake", "self"),), "wake memory, the wake convects itself away (u|u|)"),
+    Member("wake-plate", (("feather.wake", "plate"),), "wake memory, the wake is left at the plate's speed (u|v_n|)"),
+    Member("hinge-1e-3", (("feather.hinge_stiffness_Nm_rad_m", 1e-3),), "tape hinge 1e-3 N·m/rad/m (range's low end)",
+           _FLAPPED),
+    Member("hinge-1e-1", (("feather.hinge_stiffness_Nm_rad_m", 1e-1),), "tape hinge 1e-1 N·m/rad/m (range's high end)",
+           _FLAPPED),
+    Member("added-mass-0.7", (("feather.added_mass_scale", 0.7),), "added mass × 0.7 (range's low end)"),
+    Member("added-mass-2", (("feather.added_mass_scale", 2.0),), "added mass × 2 (range's high end, C_m at KC 5)"),
+    Member("steady-drag", (("feather.oscillatory_drag", 0.0),), "drag law: steady plate C_d 1.2 instead of C_d(KC)"),
+)
+MEMBER_BY_NAME = {m.name: m for m in MEMBERS}
+# The studies whose optimum the claims read under each member (re-validated or re-optimized).
+FAMILY_STUDIES = ("plain-max", "chordwise-max", "chordwise-min", "spanwise-max", "spanwise-min")
+
+
+@dataclass(frozen=True)
 class Resolution:
     """How hard each figure's experiments are run (periods are stroke periods)."""
 
@@ -38,8 +72,16 @@ class Resolution:
     validation_periods: int
     robot_periods: int               # robot run length; speed measured after robot_settle_periods
     robot_settle_periods: int
+    family: tuple[str, ...] = ()     # model-family members (MEMBERS' names) every claim is also run under
+    reoptimize: tuple[str, ...] = () # studies re-optimized under each member (the others: their stroke re-validated)
     workers: int | None = None       # local processes; None = all cores
     seed: int = 0
+
+    def __post_init__(self) -> None:
+        for key, names, known in (("family", self.family, MEMBER_BY_NAME), ("reoptimize", self.reoptimize, FAMILY_STUDIES)):
+            unknown = [n for n in names if n not in known]
+            if unknown:
+                raise ValueError(f"Resolution {key} = {unknown!r}: unknown; known: {', '.join(known)}")
 
     def describe(self) -> dict:
         out = dataclasses.asdict(self)
@@ -56,7 +98,7 @@ FULL = Resolution(
     settle_periods=3, periods=5, iterations=30, initial_points=4, fig7_iterations=30,
     fig7_width_ratios=FAMILY_RATIOS["chordwise"], fig7_length_ratios=FAMILY_RATIOS["spanwise"],
     fig7_periods_s=(1.5, 3.0), validation_repeats=10, validation_periods=5, robot_periods=12,
-    robot_settle_periods=6,
+    robot_settle_periods=6, family=tuple(m.name for m in MEMBERS), reoptimize=("plain-max",),
 )
 # The two sweep controllers are those that gave the highest TR for WR 7.5 and LR 2 on the paper's
 # 12-controller grid (a probe on the kinematic scene): the quick Fig. 3 maxima stay close to the full ones.

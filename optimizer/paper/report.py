@@ -204,6 +204,7 @@ def _minutes(seconds: float) -> str:
 def write_markdown(path: Path, data: Mapping, table: list[dict], figures: Mapping[str, Path], res,
                    timing: Mapping) -> Path:
     from .plan import FULL, LABELS, MORPHOLOGIES, fig7_cases, fig7_key, sweep_geometries
+    from .robustness_report import family_section, family_summary, range_cells
 
     agree = sum(1 for row in table if row["agrees"])
     judged = sum(1 for row in table if row["agrees"] is not None)
@@ -219,15 +220,18 @@ def write_markdown(path: Path, data: Mapping, table: list[dict], figures: Mappin
         f"{timing['simulated_s']:.0f} s of simulated time.\n",
         "## How to read this\n", HOW_TO_READ,
         f"## The paper's numbers beside the simulation ({agree} of {judged} agree)\n",
-        "| # | claim | where | paper | simulated | band | agrees | note |",
-        "|---|---|---|---|---|---|---|---|",
     ]
+    family = bool(table) and "robust" in table[0]
+    if family:
+        lines.append(family_summary(table, res) + "\n")
+    lines += ["| # | claim | where | paper | simulated | band | agrees | " + ("model family: range (ends) | verdict | "
+              if family else "") + "note |", "|---|---|---|---|---|---|---|" + ("---|---|" if family else "") + "---|"]
     for i, row in enumerate(table, 1):
         lo, hi = row["band"]
         band = "—" if lo == INF else f"> {lo:g}" if hi == INF else f"< {hi:g}" if lo == -INF else f"{lo:g}–{hi:g}"
         verdict = {True: "yes", False: "**no**", None: "n/a"}[row["agrees"]]
         lines.append(f"| {i} | {row['claim']} | {row['source']} | {row['paper']} | {row['simulated_text']} | "
-                     f"{band} | {verdict} | {row['note']} |")
+                     f"{band} | {verdict} | " + (range_cells(row) if family else "") + f"{row['note']} |")
     lines.append("\n## Figures\n")
     sweep = data["sweep"]["table"]
     counts = {f: len(sweep_geometries(f, res.sweep_geometries)) - 1 for f in ("chordwise", "spanwise")}
@@ -275,6 +279,8 @@ def write_markdown(path: Path, data: Mapping, table: list[dict], figures: Mappin
     _figure(lines, figures, "fig9", "Fig. 9: robot displacement and speed, best and worst controllers",
             f"The robot scene run for {res.robot_periods} periods with each feather pair and controller (baseline "
             f"added); mean speed over the periods after the first {res.robot_settle_periods}.")
+    if family:
+        lines += family_section(data, table, res, timing)
     gaps = [row for row in table if row["agrees"] is False]
     lines.append("## Where the model does not reproduce the paper\n")
     lines += [f"- **{row['claim']}** (paper {row['paper']}, simulated {row['simulated_text']}): {row['note']}"

@@ -24,13 +24,19 @@ from featherstar.optimizer.paper.paper import (
     study_specs,
     sweep_geometries,
 )
+from featherstar.optimizer.paper.family import validated_stroke_task
+from featherstar.optimizer.paper.plan import MORPHOLOGIES, PERIOD_S, Member
 from featherstar.optimizer.paper.report import claims, write_markdown
+from featherstar.optimizer.paper.robustness import AGREES, DISAGREES, UNDECIDED, family_table
+from featherstar.optimizer.space import stroke_overrides, symmetric_stroke
+from featherstar.optimizer.study import BEST_VALIDATION_INDEX
 from featherstar.optimizer.sweep import Controller
 
 TINY = dataclasses.replace(
     QUICK, name="test", sweep_geometries=1, sweep_controllers=(Controller(0.5, 1.0, 0.0),), sweep_settle_periods=0,
     sweep_periods=1, settle_periods=0, periods=1, iterations=2, initial_points=2, fig7_iterations=2,
     validation_repeats=2, validation_periods=1, robot_periods=1, robot_settle_periods=0, workers=2,
+    family=("wake-self", "hinge-1e-3"), reoptimize=("plain-max",),   # a wake law; a member the plain feather lacks
 )
 FIGURES = ["fig3_sweep.png", "fig5_symmetric.png", "fig5_plain_run.png", "fig5_chordwise_run.png",
            "fig5_spanwise_run.png", "fig6_chordwise.png", "fig6_spanwise.png", "fig7_strokes.png",
@@ -64,6 +70,37 @@ def test_the_table_holds_every_claim_with_a_finite_simulated_value(report):
         assert isinstance(row["simulated"], float) and math.isfinite(row["simulated"]), row
         assert row["agrees"] in (True, False)
         assert f"| {i} | {row['claim']} |" in text
+
+
+def test_every_claim_carries_its_range_across_the_model_family(report):
+    data = json.loads((report.parent / "paper.json").read_text())
+    assert [m["name"] for m in data["family_members"]] == list(TINY.family)
+    text = report.read_text()
+    assert "model family: range (ends)" in text and "## Model-form uncertainty" in text
+    for row in data["claims"]:
+        assert set(row["family"]) == {"default", *TINY.family}, row["id"]
+        assert row["robust"] in (AGREES, DISAGREES, UNDECIDED) and row["range_meaning"]
+        lo, hi = row["range"]
+        assert all(isinstance(v, float) and math.isfinite(v) for v in row["family"].values()), row
+        assert row["family"][row["range_ends"][0]] == lo <= row["simulated"] <= hi == row["family"][row["range_ends"][1]]
+    plain = next(row for row in data["claims"] if row["id"] == "plain_optimized")
+    reoptimized = data["family"]["wake-self"]["studies"]["plain-max"]
+    assert plain["family"]["wake-self"] == reoptimized["summary"]["thrust_ratio"] and "evaluations" in reoptimized
+    assert plain["family"]["hinge-1e-3"] == plain["simulated"]     # no hinge on the plain feather
+
+
+def test_the_family_measures_the_default_model_exactly_as_the_report_does(report):
+    """Under no overrides the family's measurement of a stroke reproduces the default's own numbers
+    (the same run, sets and noise): a member's value differs from the default's by its model only."""
+    data = json.loads((report.parent / "paper.json").read_text())
+    default = Member("default", ())
+    study = data["studies"]["chordwise-max"]
+    again = validated_stroke_task("chordwise", 7.5, PERIOD_S, study["best_overrides"], default, TINY,
+                                  BEST_VALIDATION_INDEX)
+    assert again["thrust_ratio"] == study["summary"]["thrust_ratio"]
+    symmetric = validated_stroke_task("plain", None, PERIOD_S, stroke_overrides(symmetric_stroke(PERIOD_S)), default,
+                                      TINY, (100 + MORPHOLOGIES.index("plain"),))
+    assert symmetric["thrust_ratio"] == pytest.approx(data["symmetric"]["plain"]["thrust_ratio"], rel=1e-9)
 
 
 def test_paper_json_numbers_are_finite(report):
@@ -112,15 +149,19 @@ def test_a_resumed_report_runs_only_the_missing_experiments_to_the_same_numbers(
     log = report.parent / "tasks.jsonl"
     lines = log.read_bytes().splitlines(keepends=True)
     labels = [json.loads(line)["label"] for line in lines[1:]]
-    lost = {"robot:chordwise-best", "sweep:0"}   # a logged study's robot run must be queued again
+    # a logged study's robot run and its optimum's runs under the model family must be queued again
+    lost = {"robot:chordwise-best", "sweep:0", "family:wake-self:eval:chordwise-max",
+            "family:hinge-1e-3:robot:spanwise-worst", "family:wake-self:study:plain-max"}
     assert lost <= set(labels)
     (tmp_path / "tasks.jsonl").write_bytes(b"".join(line for line, label in zip(lines, [None, *labels])
                                                    if label not in lost))
     results, _ = run_experiments(TINY, tmp_path, progress=False, resume=True)   # the figures are not the point
     after = [json.loads(line)["label"] for line in (tmp_path / "tasks.jsonl").read_text().splitlines()[1:]]
     assert sorted(after) == sorted(labels) and after[: len(labels) - len(lost)] == [l for l in labels if l not in lost]
-    original = {row["id"]: row["simulated"] for row in json.loads((report.parent / "paper.json").read_text())["claims"]}
-    again = {row["id"]: row["simulated"] for row in json.loads(json.dumps(json_safe(claims(collect(results)))))}
+    original = {row["id"]: row["family"] for row in json.loads((report.parent / "paper.json").read_text())["claims"]}
+    data = collect(results)
+    table = family_table(data, claims(data), TINY, claims)
+    again = {row["id"]: row["family"] for row in json.loads(json.dumps(json_safe(table)))}
     assert again == original
     with pytest.raises(Exception, match="already holds a run"):
         run_experiments(TINY, tmp_path, progress=False)

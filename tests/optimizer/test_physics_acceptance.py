@@ -5,12 +5,17 @@ Slow (each study is 30 simulated experiments plus 2 × 10 validation sets: minut
 so a disagreement with the paper is reported, not hidden. CVODE Adams: the fastest accurate method
 for the flapped feathers (physics notes §9).
 """
+import math
+
 import pytest
 
 from featherstar.optimizer.evaluation import MeasurementPlan
 from featherstar.optimizer.objective import SceneObjective, master_available
+from featherstar.optimizer.paper.family import validated_stroke_task
+from featherstar.optimizer.paper.plan import FULL, MEMBERS, Member
+from featherstar.optimizer.paper.robustness import DEFAULT
 from featherstar.optimizer.space import stroke_space
-from featherstar.optimizer.study import run_study
+from featherstar.optimizer.study import BEST_VALIDATION_INDEX, run_study
 
 pytestmark = [
     pytest.mark.stress,
@@ -58,3 +63,27 @@ def test_chordwise_worst_is_below_the_baseline(tmp_path):
 def test_plain_feather_gains_no_asymmetry_from_the_optimizer(tmp_path):
     best = _study(tmp_path, PLAIN, "max")
     assert best["thrust_ratio"] <= 1.15
+
+
+def test_plain_feather_optimum_has_its_range_across_the_model_family(tmp_path):
+    """The default model's optimized plain-feather stroke validated under every member of the model
+    family that changes the plain feather (the wake laws, added mass, drag law): the range is
+    computed from every member (none dropped), it contains the default's own validated TR, which
+    the family's measurement reproduces number for number, and the wake laws pull it down (the
+    quasi-steady timing gain is what a wake removes, docs/model.md)."""
+    best = _study(tmp_path, PLAIN, "max")
+    res = FULL   # the measurement of _study: MeasurementPlan(seed=0), 10 sets of 5 periods
+    stroke = {k: v for k, v in best["best_overrides"].items() if k.startswith("controller.")}
+    plain = [m for m in MEMBERS if m.applies("plain")]
+    values = {m.name: validated_stroke_task("plain", None, 1.5, stroke, Member(m.name, (("master.method", "adams"),
+                                                                                        *m.overrides), m.what),
+                                            res, BEST_VALIDATION_INDEX)["thrust_ratio"] for m in plain}
+    values[DEFAULT] = validated_stroke_task("plain", None, 1.5, stroke, Member(DEFAULT, (("master.method", "adams"),), ""),
+                                            res, BEST_VALIDATION_INDEX)["thrust_ratio"]
+    lo_end, hi_end = min(values, key=values.get), max(values, key=values.get)
+    print(f"plain optimum, TR across the model family: {values[lo_end]:.3f} ({lo_end}) - {values[hi_end]:.3f} "
+          f"({hi_end}); " + ", ".join(f"{n} {v:.3f}" for n, v in values.items()))
+    assert len(values) == len(plain) + 1 and all(math.isfinite(v) for v in values.values())
+    assert values[DEFAULT] == best["thrust_ratio"]
+    assert values[lo_end] <= best["thrust_ratio"] <= values[hi_end]
+    assert max(values[f"wake-{law}"] for law in ("relative", "self", "plate")) < best["thrust_ratio"]
