@@ -19,7 +19,7 @@ import termios
 
 from .emulator import IDLE_TIMEOUT_S, LOADCELL_UNIT, SERVO_UNIT, Emulator, serve, serve_rtu
 from .errors import HILError
-from .plant import flat_plate_plant, fmu_plant_parameters, read_plant_parameters
+from .plant import feather_build_options, flat_plate_plant, fmu_plant_form, read_plant_parameters
 from .registers import available_maps, load_loadcell_map, load_servo_map
 
 _DESCRIPTION = f"""\
@@ -80,13 +80,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--morphology", choices=("plain", "chordwise", "spanwise"), default="chordwise",
                    help="feather of the fmu plant (default: %(default)s)")
     p.add_argument("--plant-parameters", default=None, metavar="FILE",
-                   help="JSON object of plant coefficients that differ from the defaults, e.g. "
-                        '{"feather.drag_coeff": 1.6, "feather.oscillatory_drag": 0} (fmu plant: feather.NAME, '
-                        "servo.NAME; flat plate: c_n, c_a, ...). They are hidden: not printed, not served over "
-                        "Modbus, so a client must measure them (featherstar calibrate)")
+                   help="JSON object of plant settings that differ from the defaults, e.g. "
+                        '{"feather.wake": "plate", "feather.wake_drag_coeff": 1.4} (fmu plant: feather.NAME, '
+                        "servo.NAME, coefficients and the feather's build options "
+                        f"{', '.join(feather_build_options())}, i.e. its model form; flat plate: c_n, c_a, ...). "
+                        "They are hidden: not printed, not served over Modbus, so a client must measure them "
+                        "(featherstar calibrate). Names and values are checked before the FMUs build")
     p.add_argument("--plant-set", action="append", default=[], metavar="NAME=VALUE",
-                   help="one plant coefficient (repeatable; wins over --plant-parameters; visible in the "
-                        "process list, unlike the file)")
+                   help="one plant setting, e.g. feather.wake=plate or feather.drag_coeff=1.6 (repeatable; "
+                        "wins over --plant-parameters; visible in the process list, unlike the file)")
     p.set_defaults(func=emulate)
 
 
@@ -115,10 +117,12 @@ def emulate(args: argparse.Namespace) -> int:
     logging.basicConfig(level=logging.WARNING, format="%(asctime)s %(name)s: %(message)s")
     hidden = read_plant_parameters(args.plant_parameters, args.plant_set)
     if args.plant == "fmu":
-        from .fmu_plant import FmuPlant  # builds FMUs: only when asked for
+        from .fmu_plant import FmuPlant, plant_plan  # builds FMUs: only when asked for
 
-        feather, servo = fmu_plant_parameters(hidden)
-        plant = FmuPlant(args.morphology, feather_parameters=feather, servo_parameters=servo)
+        form = fmu_plant_form(hidden)
+        plant_plan(args.morphology, form)   # every name and value checked before the FMUs build
+        plant = FmuPlant(args.morphology, feather_parameters=form.feather, servo_parameters=form.servo,
+                         feather_options=form.feather_options)
     else:
         plant = flat_plate_plant(hidden)
     emulator = Emulator(loadcell_map, servo_map, plant, noise_N=args.noise_N, seed=args.seed)
@@ -129,7 +133,7 @@ def emulate(args: argparse.Namespace) -> int:
         print(f"featherstar emulate: listening on {url} "
               f"(load cell unit {LOADCELL_UNIT}: {emulator.loadcell_map.name}, "
               f"servo unit {SERVO_UNIT}: {emulator.servo_map.name})"
-              + (f"; {len(hidden)} hidden plant coefficient(s) differ from the defaults" if hidden else ""),
+              + (f"; {len(hidden)} hidden plant setting(s) differ from the defaults" if hidden else ""),
               flush=True)
 
     async def run() -> None:

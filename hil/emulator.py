@@ -25,7 +25,7 @@ from .emulated_bench import IDLE_TIMEOUT_S, LOADCELL_UNIT, SERVO_UNIT, Emulator
 from .errors import HILError
 from .modbus_server import ModbusTcpServer
 from .rtu_server import ModbusRtuServer
-from .plant import Plant
+from .plant import Plant, PlantValue
 from .registers import load_loadcell_map, load_servo_map
 
 
@@ -168,7 +168,7 @@ class EmulatorProcess(_Handle):
                             r"|modbus-rtu://([^?\s]+)\?baudrate=(\d+))")
 
     def __init__(self, args: list[str], start_timeout_s: float = 20.0,
-                 plant_parameters: Mapping[str, float] | None = None) -> None:
+                 plant_parameters: Mapping[str, PlantValue] | None = None) -> None:
         # stderr to a file: an unread pipe would fill and stall the child.
         self._stderr = tempfile.TemporaryFile("w+")
         # Hidden coefficients go through a file, not the command line (which `ps` shows).
@@ -223,13 +223,14 @@ def spawn_emulator(host: str = "127.0.0.1", port: int = 0,
                    servo_map: str | Path = "servo-default", *, noise_N: float = 0.01,
                    seed: int | None = None, plant: str = "flat-plate",
                    morphology: str = "chordwise", start_timeout_s: float = 20.0,
-                   plant_parameters: Mapping[str, float] | None = None,
+                   plant_parameters: Mapping[str, PlantValue] | None = None,
                    rtu: str | None = None) -> EmulatorProcess:
     """Run the emulator in a child process; returns once it listens (port 0 = any).
 
     `plant` is "flat-plate" (analytic, starts at once) or "fmu" (the servo and feather FMUs;
     the first start compiles them, so give it a longer `start_timeout_s`). `plant_parameters`
-    are hidden coefficients of the plant (see `featherstar emulate --plant-parameters`).
+    are hidden settings of the plant: coefficients and, for the fmu plant, the feather's build
+    options such as {"feather.wake": "plate"} (see `featherstar emulate --plant-parameters`).
     `rtu` (a tty path or "pty") serves Modbus RTU there at 115200 baud instead of TCP."""
     args = ["--host", host, "--port", str(port), "--loadcell-map", str(loadcell_map),
             "--servo-map", str(servo_map), "--noise-N", str(noise_N), "--plant", plant,

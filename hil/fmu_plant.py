@@ -21,7 +21,9 @@ from ..cosim.coupling.simulator import Simulator
 from ..cosim.errors import SceneError, StepError
 from ..cosim.scene.data import Scene, scene_from_dict
 from ..cosim.scene.graph import plan
+from ..cosim.scene.plan import Plan
 from .errors import HILError
+from .plant import FmuPlantForm, PlantValue, feather_build_options
 
 #: Plant time the emulated bench can run (its FMUs are told this stop time): a month.
 HORIZON_S = 30 * 24 * 3600.0
@@ -33,7 +35,8 @@ IMPULSE_SAMPLE_S = 5e-4
 
 
 def plant_scene(morphology: str, feather_parameters: Mapping[str, float],
-                servo_parameters: Mapping[str, float]) -> Scene:
+                servo_parameters: Mapping[str, float],
+                feather_options: Mapping[str, PlantValue] | None = None) -> Scene:
     """The emulated bench as a scene: a `command` source for the servo setpoint, still water."""
     return scene_from_dict({
         "name": "emulated_testbed",
@@ -58,11 +61,34 @@ def plant_scene(morphology: str, feather_parameters: Mapping[str, float],
         "blocks": {
             "command": {"kind": "constant", "outputs": {"setpoint_rad": {"value": 0.0, "unit": "rad"}}},
             "servo": {"kind": "fmu", "model": "servo", "parameters": dict(servo_parameters)},
-            "feather": {"kind": "fmu", "model": "feather", "options": {"morphology": morphology},
+            "feather": {"kind": "fmu", "model": "feather", "options": {**dict(feather_options or {}), "morphology": morphology},
                         "parameters": dict(feather_parameters)},
             "tank": {"kind": "constant", "outputs": {"flow_speed_m_s": {"value": 0.0, "unit": "m/s"}}},
         },
     })
+
+
+def plant_plan(morphology: str, form: FmuPlantForm) -> Plan:
+    """The FMU plant's plan: every build option, name and value checked, no FMU built (CasADi
+    only, well under a second), so a bad hidden setting is refused before the emulator compiles."""
+    try:
+        checked = plan(plant_scene(morphology, form.feather, form.servo, form.feather_options),
+                       outputs=["servo.angle_rad", "feather.thrust_N"])
+    except SceneError as exc:
+        raise HILError(f"fmu plant: {exc}") from None
+    # A scene may name parameters another model form lacks (the wake laws replace drag_coeff by
+    # wake_drag_coeff); a hidden coefficient the plant would ignore must not pass as applied.
+    for block, given in (("feather", form.feather), ("servo", form.servo)):
+        model = checked.blocks[block].model
+        known = [p.name for p in model.parameters]
+        unknown = [name for name in given if name not in known]
+        if unknown:
+            options = ", ".join(f"{k}={v}" for k, v in model.options.items()) if block == "feather" else ""
+            extra = f"; build options: {', '.join(feather_build_options())}" if block == "feather" else ""
+            raise HILError(f"plant parameter(s) not applied: the {block} model"
+                           f"{' (' + options + ')' if options else ''} has no coefficient "
+                           f"{', '.join(repr(n) for n in unknown)}; its coefficients: {', '.join(known)}{extra}")
+    return checked
 
 
 class FmuPlant:
@@ -70,19 +96,12 @@ class FmuPlant:
 
     def __init__(self, morphology: str = "chordwise", *,
                  feather_parameters: Mapping[str, float] | None = None,
-                 servo_parameters: Mapping[str, float] | None = None) -> None:
-        try:
-            self._plan = plan(plant_scene(morphology, dict(feather_parameters or {}),
-                                          dict(servo_parameters or {})),
-                              outputs=["servo.angle_rad", "feather.thrust_N"])
-        except SceneError as exc:
-            raise HILError(f"FmuPlant: {exc}") from None
-        # A scene may name parameters another morphology has; a hidden coefficient the plant
-        # would ignore must not be reported as applied (a misspelt drag_coef, say).
-        ignored = [note for name in ("servo", "feather") for note in self._plan.blocks[name].notes
-                   if "ignored" in note]
-        if ignored:
-            raise HILError(f"plant parameter(s) not applied: {'; '.join(ignored)}")
+                 servo_parameters: Mapping[str, float] | None = None,
+                 feather_options: Mapping[str, PlantValue] | None = None) -> None:
+        """`feather_options`: the feather's build options (its model form, e.g. {"wake": "plate"});
+        `feather_parameters` / `servo_parameters`: coefficients that differ from the defaults."""
+        self._plan = plant_plan(morphology, FmuPlantForm(dict(feather_options or {}), dict(feather_parameters or {}),
+                                                         dict(servo_parameters or {})))
         self._sim: Simulator | None = None
         self._start()
 

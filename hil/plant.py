@@ -17,6 +17,8 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Mapping, Protocol, Sequence, runtime_checkable
 
+from ..cosim.scene.specs import parse_value
+from ..fmu_src.catalog import build_options
 from .errors import HILError
 
 
@@ -106,11 +108,35 @@ class FlatPlatePlant:
             self.impulse_Ns += self.thrust_N * h
 
 
-def read_plant_parameters(path: str | Path | None, items: Sequence[str] = ()) -> dict[str, float]:
-    """Plant coefficients that differ from the defaults: a JSON object file ({"feather.drag_coeff":
-    1.5, ...}) and KEY=VALUE items (which win). The emulator never serves them over Modbus: a
-    client has to measure them, which is what calibration is tested against."""
-    parameters: dict[str, float] = {}
+#: Value of a plant parameter: a coefficient (a number) or a feather build option (the wake law, the
+#: drag quadrature...: a name, an integer or a boolean; fmu_src.catalog.build_options("feather")).
+PlantValue = float | int | bool | str
+
+
+def feather_build_options() -> tuple[str, ...]:
+    """The feather build options a plant parameter may set (the morphology has --morphology)."""
+    return tuple(o for o in build_options("feather") if o != "morphology")
+
+
+def _option_name(key: str) -> str | None:
+    """The feather build option a "feather.NAME" (or bare NAME) key names, or None."""
+    block, dot, name = key.partition(".")
+    name = name if dot else block
+    if dot and block != "feather":
+        return None
+    if name == "morphology":
+        raise HILError(f"plant parameter {key!r}: the feather's morphology is chosen with --morphology "
+                       "(spawn_emulator(morphology=...)), not as a hidden parameter")
+    return name if name in build_options("feather") else None
+
+
+def read_plant_parameters(path: str | Path | None, items: Sequence[str] = ()) -> dict[str, PlantValue]:
+    """Plant parameters that differ from the defaults: a JSON object file ({"feather.drag_coeff":
+    1.5, "feather.wake": "plate", ...}) and KEY=VALUE items (which win). Coefficients are finite
+    numbers; feather build options (`feather_build_options`: the model's form) keep their value
+    (a name, integer or boolean; the model checks it). The emulator never serves any of them
+    over Modbus: a client has to measure them, which is what calibration is tested against."""
+    parameters: dict[str, object] = {}
     if path is not None:
         try:
             loaded = json.loads(Path(path).read_text(encoding="utf-8"))
@@ -124,32 +150,55 @@ def read_plant_parameters(path: str | Path | None, items: Sequence[str] = ()) ->
         key, eq, value = item.partition("=")
         if not eq or not key.strip():
             raise HILError(f"--plant-set {item!r} must read NAME=VALUE")
-        parameters[key.strip()] = value.strip()
-    checked = {}
+        key, value = key.strip(), value.strip()
+        # text from the command line: a build option's true/8 as the JSON file would give it
+        parameters[key] = parse_value(value) if _option_name(key) else value
+    checked: dict[str, PlantValue] = {}
     for key, value in parameters.items():
+        if _option_name(key):
+            if not isinstance(value, (str, int, bool)):
+                raise HILError(f"plant build option {key!r} = {value!r} must be a name, an integer or "
+                               "true/false (e.g. feather.wake=plate)")
+            checked[key] = value
+            continue
         try:   # a JSON true is not a coefficient, though Python would read it as 1
             number = math.nan if isinstance(value, bool) else float(value)
         except (TypeError, ValueError, OverflowError):
             number = math.nan
         if not math.isfinite(number):
-            raise HILError(f"plant parameter {key!r} = {value!r} must be a finite number")
+            raise HILError(f"plant parameter {key!r} = {value!r} must be a finite number "
+                           f"(or a feather build option: {', '.join(feather_build_options())})")
         checked[key] = number
     return checked
 
 
-def fmu_plant_parameters(parameters: Mapping[str, float]) -> tuple[dict[str, float], dict[str, float]]:
-    """(feather, servo) parameters of the FMU plant from "feather.NAME" / "servo.NAME" keys
-    (a bare NAME is the feather's); the FMU models check names and physical ranges."""
-    feather, servo = {}, {}
+@dataclass(frozen=True)
+class FmuPlantForm:
+    """The FMU plant's hidden settings by role: the feather's build options (its model form),
+    the feather's and the servo's coefficients."""
+
+    feather_options: dict[str, PlantValue]
+    feather: dict[str, float]
+    servo: dict[str, float]
+
+
+def fmu_plant_form(parameters: Mapping[str, PlantValue]) -> FmuPlantForm:
+    """Split "feather.NAME" / "servo.NAME" keys (a bare NAME is the feather's) into build options
+    and coefficients; the FMU plant's plan (featherstar.hil.fmu_plant.plant_plan) checks them."""
+    form = FmuPlantForm({}, {}, {})
     for key, value in parameters.items():
         block, dot, name = key.partition(".")
         if not dot:
-            feather[key] = value
-        elif block in ("feather", "servo"):
-            (feather if block == "feather" else servo)[name] = value
-        else:
+            block, name = "feather", key
+        if block not in ("feather", "servo"):
             raise HILError(f"plant parameter {key!r}: the fmu plant has blocks 'feather' and 'servo'")
-    return feather, servo
+        if block == "feather" and _option_name(key):
+            form.feather_options[name] = value
+        elif block == "feather":
+            form.feather[name] = float(value)
+        else:
+            form.servo[name] = float(value)
+    return form
 
 
 def flat_plate_plant(parameters: Mapping[str, float]) -> FlatPlatePlant:

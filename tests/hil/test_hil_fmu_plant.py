@@ -31,10 +31,10 @@ def _stroke():
     return resolve_stroke(settings, STROKE, "test stroke")
 
 
-def _plant_mean_thrust_N(setpoint_step_s: float, chunks: int = 1) -> tuple[float, np.ndarray]:
+def _plant_mean_thrust_N(setpoint_step_s: float, chunks: int = 1, wake: str = "none") -> tuple[float, np.ndarray]:
     """Mean thrust over the measured periods with the stroke written every setpoint_step_s (held
     in between), the plant advanced in `chunks` unequal pieces per step (as requests arrive)."""
-    stroke, plant = _stroke(), FmuPlant("plain")
+    stroke, plant = _stroke(), FmuPlant("plain", feather_options={"wake": wake})
     n = round(PERIODS * stroke.period_s / setpoint_step_s)
     pieces = np.arange(1, chunks + 1, dtype=float)
     pieces = pieces / pieces.sum() * setpoint_step_s
@@ -69,3 +69,15 @@ def test_plant_state_does_not_depend_on_how_requests_chop_up_time():
     three, thrust_three = _plant_mean_thrust_N(4e-3, chunks=3)
     assert three == pytest.approx(one, rel=1e-4)
     assert np.max(np.abs(thrust_three - thrust_one)) < 1e-4 * np.max(np.abs(thrust_one))
+
+
+def test_a_plant_with_a_wake_law_is_that_model_not_the_quasi_steady_one():
+    # The plant's model form is the feather's build option: with the plate's wake the same stroke
+    # gives another thrust, and the one the strong simulation of the same model gives.
+    strong_N = run_scene("testbed", {"feather.morphology": "plain", "feather.wake": "plate",
+                                     **{f"controller.{k}": v for k, v in STROKE.items()},
+                                     "master.periods": PERIODS, "metrics.settle_periods": SETTLE}).summary["mean_thrust_N"]
+    plate_N, _ = _plant_mean_thrust_N(1e-3, wake="plate")
+    none_N, _ = _plant_mean_thrust_N(1e-3)
+    assert abs(plate_N - strong_N) < 0.02 * abs(strong_N)
+    assert abs(plate_N - none_N) > 0.1 * abs(none_N), (plate_N, none_N)
