@@ -19,7 +19,7 @@ model, in the form of Kennedy & O'Hagan (2001):
   δ grows and the bench data take over.
 - ρ: the simulation's scale (the model's TR can be off by a factor, README: 1.73 vs ≈ 4), the
   maximum a posteriori value on a grid over [0, RHO_MAX]: δ's log marginal likelihood (in TR
-  units) plus a normal prior N(1, RHO_PRIOR_SD²), held at 1 (trust the simulation's scale)
+  units, δ's hyperparameters profiled) plus a normal prior N(1, RHO_PRIOR_SD²), held at 1 (trust the simulation's scale)
   until MIN_POINTS_FOR_RHO bench points exist. ρ = 0 is a bench-only GP with a constant mean:
   a simulation that predicts nothing is left entirely.
 
@@ -179,7 +179,7 @@ class DiscrepancyOptimizer:
         self._sign = -1.0 if maximize else 1.0
         self._X: list[list[float]] = []
         self._y: list[float] = []
-        self.rho = 1.0
+        self._rho = 1.0
         self._delta: GaussianProcessRegressor | None = None
 
     @property
@@ -220,17 +220,29 @@ class DiscrepancyOptimizer:
         if self._delta is None:
             rho = 1.0
             if len(y) >= MIN_POINTS_FOR_RHO:
+                # Profile: δ's hyperparameters fitted once (at the last ρ), each grid ρ then costs
+                # one Cholesky, not a hyperparameter search; they are refitted at the chosen ρ.
+                kernel = _fit(_gp(space, self.seed, restarts=0), Xt, self._sign * (y - self._rho * s)).kernel_
+
                 def score(r: float) -> float:
-                    gp = _fit(_gp(space, self.seed, restarts=0), Xt, self._sign * (y - r * s))
+                    gp = _fit(GaussianProcessRegressor(kernel=kernel, optimizer=None, normalize_y=True), Xt,
+                              self._sign * (y - r * s))
                     return log_evidence_tr(gp) - 0.5 * ((r - 1.0) / RHO_PRIOR_SD) ** 2
                 rho = float(max(RHO_GRID, key=score))
-            self.rho = rho
+            self._rho = rho
             self._delta = _fit(_gp(space, self.seed), Xt, self._sign * (y - rho * s))
-        return self._delta, Xt, self._sign * (y - self.rho * s)
+        return self._delta, Xt, self._sign * (y - self._rho * s)
+
+    @property
+    def rho(self) -> float:
+        """The simulation's fitted scale (1 before MIN_POINTS_FOR_RHO bench points)."""
+        if self._y:
+            self._fitted()
+        return self._rho
 
     def _model(self, delta: GaussianProcessRegressor, X: np.ndarray) -> tuple[_Model, np.ndarray]:
         mean, sd = self.simulation.predict(X, return_std=True)
-        return _Model(self._sign, self.rho, delta, mean, sd), self.simulation.transform(X)
+        return _Model(self._sign, self._rho, delta, mean, sd), self.simulation.transform(X)
 
     def ask(self) -> dict[str, float]:
         with threadpool_limits(limits=1, user_api="blas"):
@@ -249,9 +261,9 @@ class DiscrepancyOptimizer:
         sigma = noise_sd(delta)
         model, retry = delta, 0
         while True:
-            evaluated = _Model(self._sign, self.rho, model, at_evaluated.sim_mean, at_evaluated.sim_sd)
+            evaluated = _Model(self._sign, self._rho, model, at_evaluated.sim_mean, at_evaluated.sim_sd)
             best_mean = float(np.min(evaluated.predict(Xt)[0]))
-            mean, sd = _Model(self._sign, self.rho, model, at_candidates.sim_mean, at_candidates.sim_sd).predict(Ct)
+            mean, sd = _Model(self._sign, self._rho, model, at_candidates.sim_mean, at_candidates.sim_sd).predict(Ct)
             ei = expected_improvement(mean, sd, best_mean)
             index = int(np.argmax(ei))
             overexploiting = bool(sd[index] < self.exploration_ratio * sigma)
