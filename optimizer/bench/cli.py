@@ -20,7 +20,7 @@ from ..space import SearchSpace
 from .objective import DEFAULT_MAX_ATTEMPTS, DEFAULT_REST_S, BenchObjective
 from .run import BenchFault
 from .sim_prior import SimPrior, study_morphology
-from .study import BENCH_VALIDATION_PERIODS, BENCH_VALIDATION_REPEATS, run_bench_study
+from .study import BENCH_VALIDATION_PERIODS, BENCH_VALIDATION_REPEATS, PRIOR_USES, run_bench_study
 
 # The hardware loop runs at 250 Hz (hil.hardware.with_hardware's step): one load-cell
 # sample per step, read as recorded.
@@ -47,18 +47,25 @@ def add_bench_options(parser: argparse.ArgumentParser) -> None:
                        help="periods per validation set (paper: 5)")
     group.add_argument("--prior", type=Path, default=None, metavar="DIR",
                        help="a simulated `featherstar optimize` study of the same feather: its best strokes are "
-                            "the bench study's initial points")
+                            "the bench study's initial points (see --prior-use)")
+    group.add_argument("--prior-use", choices=PRIOR_USES, default="seed",
+                       help="how the bench study uses --prior: seed = its best strokes are the initial design "
+                            "(default); discrepancy = the study's model is that study's simulation plus a learned "
+                            "discrepancy (each bench stroke is simulated too; docs/bench-loop.md)")
 
 
 def check_bench_arguments(args: argparse.Namespace) -> None:
     """One clear line for options that make no sense on (or off) the bench."""
     if not args.hardware:
         for flag, given in (("--prior", args.prior is not None), ("--rest-s", args.rest_s != DEFAULT_REST_S),
+                            ("--prior-use", args.prior_use != "seed"),
                             ("--max-attempts", args.max_attempts != DEFAULT_MAX_ATTEMPTS)):
             if given:
                 raise OptimizerError(f"{flag} applies to a study on the bench (--hardware servo=URL --hardware "
                                      "loadcell=URL)")
         return
+    if args.prior_use != "seed" and args.prior is None:
+        raise OptimizerError(f"--prior-use {args.prior_use} needs --prior DIR (a simulated study of the same feather)")
     if args.scheduler or args.batch_size != 1 or args.workers not in (None, 1):
         raise OptimizerError("--hardware: one bench runs one stroke at a time; --scheduler, --workers and "
                              "--batch-size do not apply")
@@ -87,12 +94,12 @@ def bench_optimize(args: argparse.Namespace, space: SearchSpace, overrides: dict
                               maximize=maximize)
     print(f"optimizing {args.scene} ON THE BENCH ({args.objective} TR, {args.iterations} iterations, "
           f"{args.settle_periods}+{args.periods} periods of {space.period_s:g} s each, rest {args.rest_s:g} s"
-          f"{', prior ' + str(args.prior) if prior else ''}) → {args.out}/evaluations.jsonl", flush=True)
+          f"{f', prior {args.prior} ({args.prior_use})' if prior else ''}) → {args.out}/evaluations.jsonl", flush=True)
     try:
         summary = run_bench_study(
             bench, space, args.out, plan=plan, iterations=args.iterations, maximize=maximize, resume=args.resume,
             max_attempts=args.max_attempts, validation_repeats=args.validation_repeats,
-            validation_periods=args.validation_periods, prior=prior, label=args.label or args.scene,
+            validation_periods=args.validation_periods, prior=prior, prior_use=args.prior_use, label=args.label or args.scene,
             compare=compare, on_record=_print_record,
         )
     except BenchFault as fault:
@@ -104,12 +111,15 @@ def bench_optimize(args: argparse.Namespace, space: SearchSpace, overrides: dict
         return 130
     print(
         f"best, measured ({summary['objective']}): {json.dumps(summary['best_params'])}\n"
-        f"  TR = {summary['thrust_ratio']:.3f} ± {summary['thrust_ratio_sd']:.3f} "
-        f"(estimated {summary['estimated_thrust_ratio']:.3f}), mean thrust {summary['mean_thrust_N'] * 1e3:.2f} mN\n"
+        f"  TR = {summary['thrust_ratio']:.3f} ± {summary['thrust_ratio_sd']:.3f} as validated "
+        f"(the model had estimated {summary['estimated_thrust_ratio']:.3f}), "
+        f"mean thrust {summary['mean_thrust_N'] * 1e3:.2f} mN\n"
         f"  baseline TR = {summary['baseline_thrust_ratio']:.3f} ± {summary['baseline_thrust_ratio_sd']:.3f}\n"
         f"  {summary['discarded_runs']} runs discarded and repeated, {summary['faults']} pauses\n"
         f"wrote {args.out}/summary.json, fig6_progress.png, fig8_validation.png"
     )
+    for warning in summary["warnings"]:
+        print(f"featherstar: WARNING: {warning}", file=sys.stderr)
     return 0
 
 

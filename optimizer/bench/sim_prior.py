@@ -17,16 +17,20 @@ the prior is wrong beyond those few runs: the GP then explores as without a prio
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
 
 from ..errors import OptimizerError
+from ..evaluation import MeasurementPlan
+from ..loadcell import LoadCell
 from ..log import ExperimentLog
 from ..resume import Entries, check_log
+from ..objective import Objective, SceneObjective, WithOverrides
 from ..space import SearchSpace
+from ..synthetic import SyntheticFeather
 
 MIN_SEPARATION = 0.1   # of each variable's range: initial points must not all sit on one spot
 _GEOMETRY = {"chordwise": "feather.width_ratio", "spanwise": "feather.length_ratio"}
@@ -71,6 +75,8 @@ class SimPrior:
     points: tuple[dict[str, float], ...]
     values: tuple[float, ...]
     maximize: bool
+    context: dict[str, Any] = field(default_factory=dict)       # its scene and overrides
+    measurement: dict[str, Any] = field(default_factory=dict)   # its settling and measured periods
 
     @classmethod
     def load(cls, directory: str | Path, *, feather: Mapping[str, Any], space: SearchSpace,
@@ -111,7 +117,8 @@ class SimPrior:
         if missing:
             raise OptimizerError(f"--prior {directory}: its evaluations have no {', '.join(missing)}")
         return cls(directory, dict(feather), tuple({n: float(r["params"][n]) for n in space.names} for r in records),
-                   tuple(float(r["thrust_ratio"]) for r in records), maximize)
+                   tuple(float(r["thrust_ratio"]) for r in records), maximize, dict(context),
+                   dict(header.get("measurement") or {}))
 
     def initial_points(self, space: SearchSpace, n: int, *, maximize: bool) -> list[dict[str, float]]:
         """Up to `n` of the best simulated strokes inside `space`, best first, each at least
@@ -131,6 +138,20 @@ class SimPrior:
             if len(points) == n:
                 break
         return points
+
+    def simulation(self) -> tuple[Objective, MeasurementPlan]:
+        """The simulated study's own simulation (its scene and overrides) and its measurement
+        window, read without noise: what a discrepancy prior simulates at each bench stroke."""
+        scene = str(self.context.get("scene", ""))
+        overrides = dict(self.context.get("overrides") or {})
+        if not scene:
+            raise OptimizerError(f"--prior {self.directory}: its header names no scene to simulate")
+        objective: Objective = (WithOverrides(SyntheticFeather(morphology=scene[len(_SYNTHETIC):]), overrides)
+                                if scene.startswith(_SYNTHETIC) else SceneObjective(scene, overrides))
+        m = self.measurement
+        plan = MeasurementPlan(load_cell=LoadCell(noise_sd_N=0.0, sample_rate_hz=float(m.get("sample_rate_hz", LoadCell().sample_rate_hz))),
+                               settle_periods=int(m.get("settle_periods", 3)), periods=int(m.get("periods", 5)))
+        return objective, plan
 
     def describe(self) -> dict:
         best = int(np.argmax(self.values) if self.maximize else np.argmin(self.values))

@@ -13,7 +13,15 @@ A device fault logs a `fault` record and raises `BenchFault` with the log intact
 replays the log and continues: a logged evaluation or validation is never run again, and the
 point asked next is the one the uninterrupted study would have asked (the optimizer's randomness
 is seeded by the number of points told). With a `SimPrior`, the initial design is the simulated
-study's best strokes instead of random ones (see featherstar.optimizer.bench.sim_prior).
+study's best strokes instead of random ones (see featherstar.optimizer.bench.sim_prior). With
+`prior_use="discrepancy"` the study's surrogate is the simulation plus a learned discrepancy
+(featherstar.optimizer.bench.discrepancy): before each bench run the stroke is simulated too, and
+logged as
+
+    simulation   the simulation's TR at evaluation `index`'s stroke (once; a resume reuses it)
+
+The reported best is what validation measured on the bench (the model's estimate is kept beside
+it, never in its place), and a best that validated below the symmetric baseline is flagged.
 """
 from __future__ import annotations
 
@@ -26,6 +34,7 @@ from ..acquisition import DEFAULT_EXPLORATION_RATIO
 from ..bayes import DEFAULT_INITIAL_POINTS, OptimizationRun, StrokeOptimizer
 from ..errors import OptimizerError
 from ..evaluation import ITERATION_STREAM, MeasurementPlan, evaluate, validate
+from ..objective import Objective
 from ..log import ExperimentLog
 from ..resume import Entries, check_log
 from ..space import SearchSpace
@@ -39,10 +48,12 @@ from ..study import (
 from ..study_log import check_in_order, study_entries
 from .objective import DEFAULT_MAX_ATTEMPTS, BenchObjective, Retrying
 from .run import BenchFault
+from .discrepancy import DiscrepancyOptimizer, SimulationModel
 from .sim_prior import SimPrior
 
 BENCH_VALIDATION_REPEATS = 10
 BENCH_VALIDATION_PERIODS = 5
+PRIOR_USES = ("seed", "discrepancy")
 
 
 def run_bench_study(
@@ -60,6 +71,8 @@ def run_bench_study(
     validation_repeats: int = BENCH_VALIDATION_REPEATS,
     validation_periods: int = BENCH_VALIDATION_PERIODS,
     prior: SimPrior | None = None,
+    prior_use: str = "seed",
+    simulation: tuple[Objective, MeasurementPlan] | None = None,
     label: str = "feather",
     compare: tuple[Mapping, ...] = (),
     on_record: Callable[[dict], None] | None = None,
@@ -69,7 +82,15 @@ def run_bench_study(
 
     `plan` must read the bench's thrust as recorded (no added noise). `on_record` sees every new
     log record (progress display). Raises BenchFault (study paused, resumable) on a device fault.
+    `prior_use`: "seed" (the prior's best strokes are the initial design) or "discrepancy" (the
+    surrogate is the prior's simulation plus a learned discrepancy; `simulation` is the objective
+    and plan simulated at each bench stroke, default `prior.simulation()`).
     """
+    if prior_use not in PRIOR_USES:
+        raise OptimizerError(f"prior use {prior_use!r}: valid values are {', '.join(PRIOR_USES)}")
+    discrepancy = prior is not None and prior_use == "discrepancy"
+    if discrepancy:
+        n_initial_points = 1   # the simulation's best stroke; then the model (discrepancy module)
     if iterations < n_initial_points:
         raise OptimizerError(f"iterations = {iterations} must be >= n_initial_points = {n_initial_points}")
     if plan.load_cell.noise_sd_N != 0:
@@ -88,16 +109,25 @@ def run_bench_study(
         "n_initial_points": n_initial_points,
         "exploration_ratio": exploration_ratio,
         "validation": {"repeats": validation_repeats, "periods": validation_periods},
-        "prior": None if prior is None else prior.describe(),
+        "prior": None if prior is None else {**prior.describe(), "use": prior_use},
     }
     log = ExperimentLog.open(out_dir / "evaluations.jsonl", header, resume=resume)
     check_log(log, bench_entries(space, iterations))
     check_in_order(log)
     study = _Study(log, on_record)
-    optimizer = StrokeOptimizer(space, maximize=maximize, n_initial_points=n_initial_points,
-                                exploration_ratio=exploration_ratio, seed=plan.seed)
-    initial = prior.initial_points(space, n_initial_points, maximize=maximize) if prior else []
     evaluations = study.of_kind("evaluation")
+    simulations = {r["index"]: r for r in study.of_kind("simulation")}
+    if discrepancy:
+        optimizer = DiscrepancyOptimizer(space, SimulationModel(space, prior.points, prior.values, seed=plan.seed),
+                                         maximize=maximize, exploration_ratio=exploration_ratio, seed=plan.seed)
+        sim_objective, sim_plan = simulation or prior.simulation()
+        initial = []
+        for r in evaluations:
+            optimizer.tell_simulation(r["params"], simulations[r["index"]]["thrust_ratio"])
+    else:
+        optimizer = StrokeOptimizer(space, maximize=maximize, n_initial_points=n_initial_points,
+                                    exploration_ratio=exploration_ratio, seed=plan.seed)
+        initial = prior.initial_points(space, n_initial_points, maximize=maximize) if prior else []
     optimizer.tell_many([r["params"] for r in evaluations], [r["thrust_ratio"] for r in evaluations])
     estimates = {r["index"]: r for r in study.of_kind("estimate")}
     started = time.perf_counter()
@@ -106,6 +136,17 @@ def run_bench_study(
         point = initial[index] if index < len(initial) else optimizer.ask()
         proposal = optimizer.last_proposal if index >= len(initial) else None
         where = {"index": index, "params": point}
+        if discrepancy:
+            if index not in simulations:
+                simulated = evaluate(sim_objective, space.overrides(point), space.period_s, sim_plan,
+                                     ITERATION_STREAM, (index,))
+                simulations[index] = {"kind": "simulation", **where, "thrust_ratio": simulated.thrust_ratio,
+                                      "sim_wall_s": simulated.sim_wall_s}
+                study.append(simulations[index])
+            elif simulations[index]["params"] != point:
+                raise OptimizerError(f"{log.path}: simulation {index} is not of the point this setup asks there; "
+                                     "the log was written by another version or setup")
+            optimizer.tell_simulation(point, simulations[index]["thrust_ratio"])
         result = study.measure(lambda objective: evaluate(objective, space.overrides(point), space.period_s, plan,
                                                            ITERATION_STREAM, (index,)), bench, where, max_attempts)
         if not math.isfinite(result.thrust_ratio):
@@ -144,11 +185,33 @@ def run_bench_study(
                             repeats=validation_repeats, periods=validation_periods,
                             validation_s=time.perf_counter() - validation_started,
                             validation_simulation_s=0.0)
-    summary.update(label=label, measured=True, bench=bench.describe(),
-                   prior=None if prior is None else prior.describe(),
+    summary.update(label=label, measured=True, bench=bench.describe(), **validated_best(summary, maximize),
+                   prior=None if prior is None else {
+                       **prior.describe(), "use": prior_use,
+                       **({"model": optimizer.describe(), "simulations": len(simulations),
+                           "simulation_wall_s": sum(r["sim_wall_s"] for r in simulations.values())}
+                          if discrepancy else {})},
                    discarded_runs=len(study.of_kind("discarded")), faults=len(study.of_kind("fault")))
     write_study_outputs(out_dir, run, summary, label=label, compare=compare, measured=True)
     return summary
+
+
+def validated_best(summary: Mapping, maximize: bool) -> dict:
+    """What a bench study reports as its best: the TR validation measured (summary's
+    "thrust_ratio"), how far the model's estimate was above it, and whether it validated below the
+    symmetric baseline (`below_baseline`, with a warning line: the study found nothing better than
+    the stroke it started from, or its estimate was fooled by noise or a biased prior)."""
+    measured, baseline = summary["thrust_ratio"], summary["baseline_thrust_ratio"]
+    below = measured < baseline if maximize else measured > baseline
+    warnings = []
+    if below:
+        warnings.append(f"the study's best stroke validated at TR {measured:.3f} ± {summary['thrust_ratio_sd']:.3f}, "
+                        f"{'below' if maximize else 'above'} the symmetric baseline's {baseline:.3f} ± "
+                        f"{summary['baseline_thrust_ratio_sd']:.3f} (its model had estimated "
+                        f"{summary['estimated_thrust_ratio']:.3f}): the baseline is the better stroke measured")
+    return {"reported_thrust_ratio": measured, "reported": "validation",
+            "estimate_minus_validated": summary["estimated_thrust_ratio"] - measured,
+            "below_baseline": below, "warnings": warnings}
 
 
 def bench_entries(space: SearchSpace, iterations: int) -> list[Entries]:
@@ -158,6 +221,9 @@ def bench_entries(space: SearchSpace, iterations: int) -> list[Entries]:
         *study_entries(space, iterations, extra={"bench_wall_s": "number", "from_prior": "bool"}),
         Entries("discarded", {"reasons": "list"}),
         Entries("fault", {"message": "str"}),
+        Entries("simulation", {"index": "int", "params": "dict", "thrust_ratio": "number", "sim_wall_s": "number"},
+                key="index", planned=lambda index: {} if 0 <= index < iterations else None,
+                plan=f"indices 0..{iterations - 1}"),
         Entries("validation", {"controller": "str", "thrust_ratio": "number", "thrust_ratio_sd": "number",
                                "mean_thrust_N": "number", "mean_thrust_sd_N": "number"}, key="controller",
                 planned=lambda controller: {} if controller in ("best", "baseline") else None,

@@ -1,0 +1,160 @@
+"""The discrepancy prior's surrogate (bench = ρ · simulation + GP discrepancy) and the bench study's
+reported best, on analytic stand-ins: no emulator, no FMU (seconds in all)."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from featherstar.optimizer.bench.discrepancy import DiscrepancyOptimizer, SimulationModel
+from featherstar.optimizer.bench.sim_prior import SimPrior
+from featherstar.optimizer.bench.study import run_bench_study, validated_best
+from featherstar.optimizer.errors import OptimizerError
+from featherstar.optimizer.evaluation import MeasurementPlan
+from featherstar.optimizer.loadcell import LoadCell
+from featherstar.optimizer.objective import WithOverrides
+from featherstar.optimizer.space import stroke_space
+from featherstar.optimizer.synthetic import SyntheticFeather
+
+SPACE = stroke_space(1.0)
+LOW, HIGH = np.array(SPACE.bounds).T
+
+
+def sim_tr(point) -> float:
+    """A smooth simulated TR with its peak inside the space."""
+    x = (np.array(SPACE.vector(point)) - LOW) / (HIGH - LOW)
+    return float(1.0 + 0.6 * np.exp(-np.sum((x - 0.65) ** 2) / 0.15))
+
+
+def points(n: int, seed: int) -> list[dict]:
+    return [SPACE.point(v) for v in SPACE.sample(np.random.default_rng(seed), n)]
+
+
+def simulated_model(n: int = 25) -> SimulationModel:
+    study = points(n, 0)
+    return SimulationModel(SPACE, study, [sim_tr(p) for p in study])
+
+
+def told(bench, n: int, seed: int = 1) -> DiscrepancyOptimizer:
+    optimizer = DiscrepancyOptimizer(SPACE, simulated_model(), seed=3)
+    for p in points(n, seed):
+        optimizer.tell_simulation(p, sim_tr(p))
+        optimizer.tell(p, bench(p))
+    return optimizer
+
+
+def rms_error(optimizer: DiscrepancyOptimizer, bench) -> float:
+    test = points(60, 99)
+    mean, _ = optimizer.predict(test)
+    return float(np.sqrt(np.mean((mean - np.array([bench(p) for p in test])) ** 2)))
+
+
+@settings(max_examples=3, deadline=None)
+@given(st.floats(-0.5, 0.5).filter(lambda b: abs(b) > 0.1))
+def test_a_constant_bias_is_recovered_from_a_few_bench_points(bias):
+    bench = lambda p: sim_tr(p) + bias   # noqa: E731
+    optimizer = told(bench, 4)
+    # Everywhere, not only at the 4 bench points: the simulation's shape plus the learned offset.
+    assert rms_error(optimizer, bench) < 0.05 * abs(bias) + 0.02
+    assert rms_error(optimizer, bench) < 0.3 * abs(bias)
+
+
+def test_where_bench_and_simulation_agree_the_model_follows_the_simulation():
+    optimizer = told(sim_tr, 3)
+    assert optimizer.rho == pytest.approx(1.0, abs=0.25)
+    # 3 bench points cannot teach a GP the peak's shape: the simulation does.
+    assert rms_error(optimizer, sim_tr) < 0.2 * float(np.std([sim_tr(p) for p in points(60, 99)]))
+
+
+def test_a_simulation_unrelated_to_the_bench_is_left():
+    flat = lambda p: 1.3 + 0.01 * float(np.sin(7 * SPACE.vector(p)[0]))   # noqa: E731
+    optimizer = told(flat, 8)
+    assert optimizer.rho < 0.5
+    assert rms_error(optimizer, flat) < 0.05
+
+
+def test_ask_tell_order_first_point_and_determinism():
+    optimizer = DiscrepancyOptimizer(SPACE, simulated_model(), seed=5)
+    first = optimizer.ask()
+    assert first == optimizer.simulation.best_point(maximize=True)   # before any bench data
+    assert optimizer.best() is None
+    with pytest.raises(OptimizerError, match="before its simulation"):
+        optimizer.tell(points(1, 7)[0], 1.2)
+    optimizer.tell_simulation(first, sim_tr(first))
+    optimizer.tell(first, sim_tr(first) - 0.2)
+    second = optimizer.ask()
+    # A rebuilt optimizer with the same history asks the same point (a resumed study).
+    again = DiscrepancyOptimizer(SPACE, simulated_model(), seed=5)
+    again.tell_simulation(first, sim_tr(first))
+    again.tell(first, sim_tr(first) - 0.2)
+    assert again.ask() == second
+    assert SPACE.is_feasible(second)
+    with pytest.raises(OptimizerError, match="not finite"):
+        optimizer.tell_simulation(second, float("nan"))
+
+
+SUMMARY = {"thrust_ratio": 1.46, "thrust_ratio_sd": 0.02, "baseline_thrust_ratio": 1.98,
+           "baseline_thrust_ratio_sd": 0.01, "estimated_thrust_ratio": 1.99}
+
+
+@given(st.floats(0.5, 3.0), st.floats(0.5, 3.0), st.floats(0.5, 3.0), st.booleans())
+def test_the_reported_best_is_the_validated_one_and_a_best_below_the_baseline_is_flagged(measured, baseline,
+                                                                                          estimated, maximize):
+    reported = validated_best({**SUMMARY, "thrust_ratio": measured, "baseline_thrust_ratio": baseline,
+                               "estimated_thrust_ratio": estimated}, maximize)
+    assert reported["reported_thrust_ratio"] == measured and reported["reported"] == "validation"
+    assert reported["estimate_minus_validated"] == pytest.approx(estimated - measured)
+    worse = measured < baseline if maximize else measured > baseline
+    assert reported["below_baseline"] is worse
+    assert len(reported["warnings"]) == int(worse)
+
+
+def test_the_issue_s_example_is_flagged():
+    reported = validated_best(SUMMARY, maximize=True)
+    assert reported["below_baseline"] and "1.460" in reported["warnings"][0] and "1.980" in reported["warnings"][0]
+
+
+class SyntheticBench(WithOverrides):
+    def describe(self) -> dict:
+        return {"synthetic": True}
+
+
+PLAN = MeasurementPlan(load_cell=LoadCell(noise_sd_N=0.0, sample_rate_hz=250.0), settle_periods=0, periods=1, seed=2)
+
+
+def synthetic_prior(tmp_path) -> SimPrior:
+    sim = SyntheticFeather(morphology="chordwise")
+    study = points(15, 4)
+    return SimPrior(tmp_path, {"morphology": "chordwise"}, tuple(study),
+                    tuple(sim.true_thrust_ratio(SPACE.overrides(p)) for p in study), True,
+                    {"scene": "synthetic:chordwise", "overrides": {}}, PLAN.describe())
+
+
+def test_a_bench_study_with_the_discrepancy_prior_logs_each_simulation_once_and_resumes(tmp_path):
+    # The "bench" folds its flaps twice as slowly as the simulation says: a model-form bias.
+    bench = SyntheticBench(SyntheticFeather(morphology="chordwise", fold_time_s=2.0), {})
+    prior = synthetic_prior(tmp_path)
+    kwargs = dict(plan=PLAN, validation_repeats=1, validation_periods=1, prior=prior, prior_use="discrepancy")
+    run_bench_study(bench, SPACE, tmp_path / "a", iterations=2, **kwargs)
+    summary = run_bench_study(bench, SPACE, tmp_path / "a", iterations=4, resume=True, **kwargs)
+    uninterrupted = run_bench_study(bench, SPACE, tmp_path / "b", iterations=4, **kwargs)
+    records = [json.loads(line) for line in (tmp_path / "a" / "evaluations.jsonl").read_text().splitlines()[1:]]
+    simulations = [r for r in records if r["kind"] == "simulation"]
+    evaluations = [r for r in records if r["kind"] == "evaluation"]
+    assert [r["index"] for r in simulations] == list(range(4))
+    assert [r["params"] for r in simulations] == [r["params"] for r in evaluations]
+    assert evaluations[0]["params"] == SimulationModel(SPACE, prior.points, prior.values,
+                                                       seed=PLAN.seed).best_point(True)
+    assert summary["best_params"] == uninterrupted["best_params"]
+    assert summary["prior"]["use"] == "discrepancy" and summary["prior"]["simulations"] == 4
+    assert summary["reported_thrust_ratio"] == summary["thrust_ratio"]
+    assert summary["below_baseline"] is (summary["thrust_ratio"] < summary["baseline_thrust_ratio"])
+
+
+def test_an_unknown_prior_use_is_refused(tmp_path):
+    with pytest.raises(OptimizerError, match="prior use 'mixed': valid values are seed, discrepancy"):
+        run_bench_study(SyntheticBench(SyntheticFeather(), {}), SPACE, tmp_path, plan=PLAN, iterations=4,
+                        prior=synthetic_prior(tmp_path), prior_use="mixed")
