@@ -57,6 +57,8 @@ SCENE, OVERRIDES = "testbed", {"feather.morphology": MORPHOLOGY}
 # its fitted value (fmu_src.fluid.WAKE_CONSTANTS), the added mass within 20 % of the DNV estimate.
 HIDDEN_RANGES = {"drag_coeff": (1.2, 2.0), "wake_drag_coeff_factor": (0.8, 1.25), "added_mass_scale": (0.8, 1.2)}
 COEFFICIENT_TOLERANCE = 0.15
+# the recordings' load cell reports the mean force over each 5 ms step, stamped at its end
+THRUST_SAMPLES = "interval-mean"
 # --stroke: the testbed's symmetric baseline, or a fast downstroke and a slow return (the
 # optimizer's kind of stroke, where the wake laws' impulses differ most: issue 26)
 STROKES = {"symmetric": {}, "asymmetric": {"controller.log10_up_down": 0.6, "controller.log10_hold_up_down": 0.0,
@@ -95,7 +97,8 @@ def case(law: str, seed: int, forms: tuple[str, ...]) -> dict:
             print(f"    {time.perf_counter() - started:6.0f} s  {form}: {stage}", flush=True)
             last[0] = (form, stage)
 
-    fits, choice, _ = calibrate_forms(runs, SCENE, OVERRIDES, forms, window_s=WINDOW_S, progress=progress)
+    fits, choice, _ = calibrate_forms(runs, SCENE, OVERRIDES, forms, window_s=WINDOW_S, progress=progress,
+                                      thrust_samples=THRUST_SAMPLES)
     by_form = {f.form: f for f in fits}
     true_fit = by_form.get(law)
     errors = {} if true_fit is None else {
@@ -127,8 +130,9 @@ def realtime_check(seed: int = 0, law: str = "plate") -> dict:
         emulator.stop()
     live = Recording("realtime", run.time_s, run.angle_rad, run.thrust_N, ("s", "rad", "N"), PERIOD_S)
     offline = recordings(law, seed, truth)[0]
-    measured_live, predicted = predict(live, SCENE, {**OVERRIDES, "feather.wake": law}, truth, WINDOW_S)
-    measured_offline, _ = predict(offline, SCENE, {**OVERRIDES, "feather.wake": law}, truth, WINDOW_S)
+    form = {**OVERRIDES, "feather.wake": law}
+    measured_live, predicted = predict(live, SCENE, form, truth, WINDOW_S, THRUST_SAMPLES)
+    measured_offline, _ = predict(offline, SCENE, form, truth, WINDOW_S, THRUST_SAMPLES)
     n = min(len(measured_live), len(measured_offline))
     return {"law": law, "seed": seed, "discard_reasons": discard_reasons(run),
             "rms_realtime_minus_offline_N": float(np.sqrt(np.mean((measured_live[:n] - measured_offline[:n]) ** 2))),
@@ -203,7 +207,7 @@ def main() -> None:
                            "load_average_at_start": list(os.getloadavg())},
                "setup": {"morphology": MORPHOLOGY, "stroke": {"name": args.stroke, "overrides": STROKE, "period_s": PERIOD_S},
                          "recordings_per_case": RUNS, "window_s": WINDOW_S, "hidden_ranges": HIDDEN_RANGES,
-                         "forms": list(forms), "recordings": "the emulator's FMU plant stepped in simulated time "
+                         "forms": list(forms), "thrust_samples": THRUST_SAMPLES, "recordings": "the emulator's FMU plant stepped in simulated time "
                          "as the bench client drives it (bench_calibration._offline_run)"},
                "cases": []}
     for seed in range(seeds):   # seed by seed: a run cut short still has every law

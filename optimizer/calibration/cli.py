@@ -72,10 +72,10 @@ def register_calibrate(subparsers: argparse._SubParsersAction, override_type) ->
                           "held-out error (each run left out in turn, predicted from a fit on the others) with "
                           f"BIC as tie-breaker; forms within noise ({TIE_SIGMAS:g} standard errors) and BIC within "
                           f"{BIC_DECISIVE:g} leave the form undecided")
-    cal.add_argument("--thrust-samples", choices=THRUST_SAMPLES, default="interval-mean",
-                     help="what a recorded thrust sample is: the mean force over the interval before its time "
-                          "stamp (default: the bench's integrating load cell, as `featherstar run --hardware` "
-                          "stamps it) or the force at the stamp (instant)")
+    cal.add_argument("--thrust-samples", choices=THRUST_SAMPLES, default="instant",
+                     help="what a recorded thrust sample is: the force at its time stamp (default) or the mean "
+                          "force over the interval before it (interval-mean: an integrating load cell, such as "
+                          "the emulator's; then it is compared at the interval's middle)")
     cal.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
     cal.add_argument("--window-s", type=number(above=0.0), default=None, metavar="S",
                      help="fit the first S seconds of each run (default: one stroke period, from summary.json)")
@@ -174,7 +174,7 @@ def set_arguments(fit: FormFit) -> str:
 
 
 def write_calibration(fits: Sequence[FormFit], choice: FormChoice, out: Path, *, runs: list[str], scene: str,
-                      overrides: dict, refused: list[dict[str, str]] = (), thrust_samples: str = "interval-mean") -> list[Path]:
+                      overrides: dict, refused: list[dict[str, str]] = (), thrust_samples: str = "instant") -> list[Path]:
     """calibration.json; set.txt and feather-parameters.toml when the choice is a calibration (the
     figure is drawn separately)."""
     out.mkdir(parents=True, exist_ok=True)

@@ -125,7 +125,7 @@ def form_fit(form: str, model, fit: Mapping[str, tuple[float, float] | None] | N
 
 def fit_form(form: str, recordings: Sequence[Recording], scene: str, overrides: Mapping[str, Any],
              fit: Mapping[str, tuple[float, float] | None] | None, window_s: float,
-             progress: Callable[[str, str, int], None] | None = None, thrust_samples: str = "interval-mean") -> FormFit:
+             progress: Callable[[str, str, int], None] | None = None, thrust_samples: str = "instant") -> FormFit:
     """Fit `form` on all recordings, then each left out in turn (see the module docstring)."""
     form_overrides = {**overrides, "feather.wake": form}
     names = form_fit(form, feather_model(feather_block(scene), form_overrides), fit)
@@ -188,7 +188,7 @@ def choose(fits: Sequence[FormFit]) -> FormChoice:
 def calibrate_forms(recordings: Sequence[Recording], scene: str, overrides: Mapping[str, Any],
                     forms: Sequence[str] = FORMS, fit: Mapping[str, tuple[float, float] | None] | None = None, *,
                     window_s: float | None = None,
-                    progress: Callable[[str, str, int], None] | None = None, thrust_samples: str = "interval-mean"
+                    progress: Callable[[str, str, int], None] | None = None, thrust_samples: str = "instant"
                     ) -> tuple[list[FormFit], FormChoice, list[dict[str, str]]]:
     """(each form's fit, the choice, the refused recordings) for these recordings."""
     unknown = [f for f in forms if f not in FORMS]

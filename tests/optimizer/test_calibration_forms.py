@@ -164,5 +164,5 @@ def test_an_interval_mean_thrust_sample_stands_for_its_intervals_middle():
     mean_before = t - dt / 2    # the mean of F = t over [t - dt, t]
     ramp = Recording("ramp", t, np.zeros_like(t), mean_before, ("s", "rad", "N"), 1.0)
     grid = np.linspace(0.1, 0.9, 50)
-    assert np.allclose(measured_thrust_N(ramp, grid), grid, atol=1e-12)
-    assert np.allclose(measured_thrust_N(ramp, grid, "instant"), grid - dt / 2, atol=1e-12)
+    assert np.allclose(measured_thrust_N(ramp, grid, "interval-mean"), grid, atol=1e-12)
+    assert np.allclose(measured_thrust_N(ramp, grid), grid - dt / 2, atol=1e-12)   # default: instant
