@@ -57,6 +57,13 @@ SCENE, OVERRIDES = "testbed", {"feather.morphology": MORPHOLOGY}
 # its fitted value (fmu_src.fluid.WAKE_CONSTANTS), the added mass within 20 % of the DNV estimate.
 HIDDEN_RANGES = {"drag_coeff": (1.2, 2.0), "wake_drag_coeff_factor": (0.8, 1.25), "added_mass_scale": (0.8, 1.2)}
 COEFFICIENT_TOLERANCE = 0.15
+# the recordings' load cell reports the mean force over each 5 ms step, stamped at its end
+THRUST_SAMPLES = "interval-mean"
+# --stroke: the testbed's symmetric baseline, or a fast downstroke and a slow return (the
+# optimizer's kind of stroke, where the wake laws' impulses differ most: issue 26)
+STROKES = {"symmetric": {}, "asymmetric": {"controller.log10_up_down": 0.6, "controller.log10_hold_up_down": 0.0,
+                                           "controller.log10_hold_move": -0.3}}
+STROKE = dict(STROKES["symmetric"])
 
 
 def hidden(law: str, seed: int) -> dict[str, float]:
@@ -72,7 +79,7 @@ def hidden(law: str, seed: int) -> dict[str, float]:
 def recordings(law: str, seed: int, truth: dict) -> list[Recording]:
     runs = []
     for k in range(RUNS):
-        run = _offline_run(MORPHOLOGY, {"master.t_end_s": RECORD_S, "metrics.settle_periods": 0}, truth,
+        run = _offline_run(MORPHOLOGY, {**STROKE, "master.t_end_s": RECORD_S, "metrics.settle_periods": 0}, truth,
                            100 * seed + k, {"wake": law})
         runs.append(Recording(f"{law}-s{seed}-run{k}", run["time_s"], run["angle_rad"], run["thrust_N"],
                               ("s", "rad", "N"), PERIOD_S))
@@ -90,7 +97,8 @@ def case(law: str, seed: int, forms: tuple[str, ...]) -> dict:
             print(f"    {time.perf_counter() - started:6.0f} s  {form}: {stage}", flush=True)
             last[0] = (form, stage)
 
-    fits, choice, _ = calibrate_forms(runs, SCENE, OVERRIDES, forms, window_s=WINDOW_S, progress=progress)
+    fits, choice, _ = calibrate_forms(runs, SCENE, OVERRIDES, forms, window_s=WINDOW_S, progress=progress,
+                                      thrust_samples=THRUST_SAMPLES)
     by_form = {f.form: f for f in fits}
     true_fit = by_form.get(law)
     errors = {} if true_fit is None else {
@@ -113,7 +121,7 @@ def realtime_check(seed: int = 0, law: str = "plate") -> dict:
     emulator = spawn_emulator(plant="fmu", morphology=MORPHOLOGY, noise_N=0.005, seed=seed, start_timeout_s=300,
                               plant_parameters={"feather.wake": law, **{f"feather.{k}": v for k, v in truth.items()}})
     try:
-        run = run_on_bench(SCENE, _urls(emulator), {**OVERRIDES, "controller.period_s": PERIOD_S,
+        run = run_on_bench(SCENE, _urls(emulator), {**OVERRIDES, **STROKE, "controller.period_s": PERIOD_S,
                                                      "master.step_s": 0.005, "master.t_end_s": RECORD_S,
                                                      "metrics.settle_periods": 0})
     except BenchFault as exc:
@@ -122,8 +130,9 @@ def realtime_check(seed: int = 0, law: str = "plate") -> dict:
         emulator.stop()
     live = Recording("realtime", run.time_s, run.angle_rad, run.thrust_N, ("s", "rad", "N"), PERIOD_S)
     offline = recordings(law, seed, truth)[0]
-    measured_live, predicted = predict(live, SCENE, {**OVERRIDES, "feather.wake": law}, truth, WINDOW_S)
-    measured_offline, _ = predict(offline, SCENE, {**OVERRIDES, "feather.wake": law}, truth, WINDOW_S)
+    form = {**OVERRIDES, "feather.wake": law}
+    measured_live, predicted = predict(live, SCENE, form, truth, WINDOW_S, THRUST_SAMPLES)
+    measured_offline, _ = predict(offline, SCENE, form, truth, WINDOW_S, THRUST_SAMPLES)
     n = min(len(measured_live), len(measured_offline))
     return {"law": law, "seed": seed, "discard_reasons": discard_reasons(run),
             "rms_realtime_minus_offline_N": float(np.sqrt(np.mean((measured_live[:n] - measured_offline[:n]) ** 2))),
@@ -167,27 +176,38 @@ def main() -> None:
     p.add_argument("--quick", action="store_true", help="one seed, laws none and plate, forms none and plate")
     p.add_argument("--seeds", type=int, default=5, help="seeds per law (default: %(default)s)")
     p.add_argument("--laws", default=",".join(FORMS), help="true laws, comma-separated (default: all)")
+    p.add_argument("--stroke", choices=sorted(STROKES), default="symmetric",
+                   help="stroke of the recordings (default: %(default)s; asymmetric: fast down, slow return)")
     p.add_argument("--skip-realtime", action="store_true", help="skip the one real-time emulator recording")
     p.add_argument("--out", type=Path, default=Path("docs/results"), help="where the JSON and PNG go")
     p.add_argument("--part", default=None, metavar="NAME",
                    help="write the cases to bench_model_form_calibration_part-NAME.json (run laws in parallel)")
+    p.add_argument("--realtime-only", action="store_true", help="only the real-time emulator check, into a part file")
     p.add_argument("--merge", action="store_true", help="merge the part files in --out into the JSON and PNG")
     args = p.parse_args()
-    if args.merge:
-        merge(args.out)
+    if args.realtime_only:
+        args.out.mkdir(parents=True, exist_ok=True)
+        check = realtime_check()
+        (args.out / "bench_model_form_calibration_part-realtime.json").write_text(json.dumps(
+            {"machine": {"load_average": list(os.getloadavg())}, "cases": [], "realtime_check": check}, indent=2) + "\n")
+        print(check)
         return
+    if args.merge:
+        merge(args.out, "bench_model_form_calibration" + ("" if args.stroke == "symmetric" else f"_{args.stroke}"))
+        return
+    STROKE.update(STROKES[args.stroke])
     laws = ("none", "plate") if args.quick else tuple(args.laws.split(","))
     forms = ("none", "plate") if args.quick else FORMS
     seeds = 1 if args.quick else args.seeds
     args.out.mkdir(parents=True, exist_ok=True)
-    path = args.out / (f"bench_model_form_calibration_part-{args.part}.json" if args.part else
-                       f"bench_model_form_calibration{'_quick' if args.quick else ''}.json")
+    stem = "bench_model_form_calibration" + ("" if args.stroke == "symmetric" else f"_{args.stroke}")
+    path = args.out / (f"{stem}_part-{args.part}.json" if args.part else f"{stem}{'_quick' if args.quick else ''}.json")
     started = time.perf_counter()
     results = {"machine": {"platform": platform.platform(), "cpus": os.cpu_count(),
                            "load_average_at_start": list(os.getloadavg())},
-               "setup": {"morphology": MORPHOLOGY, "stroke": "testbed's symmetric baseline, 1 s period",
+               "setup": {"morphology": MORPHOLOGY, "stroke": {"name": args.stroke, "overrides": STROKE, "period_s": PERIOD_S},
                          "recordings_per_case": RUNS, "window_s": WINDOW_S, "hidden_ranges": HIDDEN_RANGES,
-                         "forms": list(forms), "recordings": "the emulator's FMU plant stepped in simulated time "
+                         "forms": list(forms), "thrust_samples": THRUST_SAMPLES, "recordings": "the emulator's FMU plant stepped in simulated time "
                          "as the bench client drives it (bench_calibration._offline_run)"},
                "cases": []}
     for seed in range(seeds):   # seed by seed: a run cut short still has every law
@@ -210,17 +230,18 @@ def main() -> None:
     print(f"wrote {path} and {path.with_suffix('.png')} ({results['wall_s']:.0f} s)")
 
 
-def merge(out: Path) -> None:
-    parts = sorted(out.glob("bench_model_form_calibration_part-*.json"))
+def merge(out: Path, stem: str) -> None:
+    parts = sorted(out.glob(f"{stem}_part-*.json"))
     if not parts:
-        raise SystemExit(f"no bench_model_form_calibration_part-*.json in {out}")
+        raise SystemExit(f"no {stem}_part-*.json in {out}")
     loaded = [json.loads(p.read_text()) for p in parts]
+    setups = [part["setup"] for part in loaded if "setup" in part]
     cases = sorted((c for part in loaded for c in part["cases"]), key=lambda c: (FORMS.index(c["law"]), c["seed"]))
-    results = {"machine": [part["machine"] for part in loaded], "setup": loaded[0]["setup"],
+    results = {"machine": [part["machine"] for part in loaded], "setup": setups[0],
                "parts": [p.name for p in parts], "wall_s": [part.get("wall_s") for part in loaded],
                "cases": cases, "summary": summary(cases),
                **{k: part[k] for part in loaded for k in ("realtime_check",) if k in part}}
-    path = out / "bench_model_form_calibration.json"
+    path = out / f"{stem}.json"
     path.write_text(json.dumps(results, indent=2) + "\n")
     plot(cases, path.with_suffix(".png"))
     print(f"wrote {path} and {path.with_suffix('.png')} from {len(parts)} parts")

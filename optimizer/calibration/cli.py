@@ -22,7 +22,7 @@ from ..errors import OptimizerError
 from ..log import dumps
 from ..options import command, number, one_line_errors, out_dir
 from ..postprocess import optional
-from .fit import BIN_S, DEFAULT_COEFFICIENTS, Calibration, feather_block
+from .fit import BIN_S, DEFAULT_COEFFICIENTS, THRUST_SAMPLES, Calibration, feather_block
 from .forms import BIC_DECISIVE, FORMS, TIE_SIGMAS, FormChoice, FormFit, calibrate_forms, evidence_table
 from .identify import MAX_CORRELATION, MAX_RELATIVE_SD
 from .recordings import read_recording
@@ -55,8 +55,7 @@ def register_calibrate(subparsers: argparse._SubParsersAction, override_type) ->
                     "window (docs/bench-loop.md says why). A coefficient with sd above "
                     f"{MAX_RELATIVE_SD:.0%} of its value or |correlation| above {MAX_CORRELATION:g} is not identified. "
                     f"Exit status {NOT_A_CALIBRATION} (and no set.txt) when the form is undecided or the chosen "
-                    "form has a coefficient the runs do not identify.",
-        formatter_class=argparse.RawDescriptionHelpFormatter)
+                    "form has a coefficient the runs do not identify.")
     one_line_errors(cal)
     cal.add_argument("runs", nargs="+", type=Path, metavar="RUN", help="run directory or CSV (repeatable)")
     cal.add_argument("--scene", default="testbed", help="scene whose feather block is calibrated (default testbed)")
@@ -73,6 +72,10 @@ def register_calibrate(subparsers: argparse._SubParsersAction, override_type) ->
                           "held-out error (each run left out in turn, predicted from a fit on the others) with "
                           f"BIC as tie-breaker; forms within noise ({TIE_SIGMAS:g} standard errors) and BIC within "
                           f"{BIC_DECISIVE:g} leave the form undecided")
+    cal.add_argument("--thrust-samples", choices=THRUST_SAMPLES, default="instant",
+                     help="what a recorded thrust sample is: the force at its time stamp (default) or the mean "
+                          "force over the interval before it (interval-mean: an integrating load cell, such as "
+                          "the emulator's; then it is compared at the interval's middle)")
     cal.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
     cal.add_argument("--window-s", type=number(above=0.0), default=None, metavar="S",
                      help="fit the first S seconds of each run (default: one stroke period, from summary.json)")
@@ -135,7 +138,8 @@ def _calibrate_command(args: argparse.Namespace) -> int:
           f"(each: a fit on all runs, then one per run left out) ...", flush=True)
     try:
         fits, choice, refused = calibrate_forms(recordings, args.scene, overrides, forms, fit,
-                                                window_s=args.window_s, progress=progress)
+                                                window_s=args.window_s, progress=progress,
+                                                thrust_samples=args.thrust_samples)
     finally:
         if progress is not None:
             progress.done()
@@ -144,7 +148,7 @@ def _calibrate_command(args: argparse.Namespace) -> int:
     chosen = next((f for f in fits if f.form == choice.chosen), None)
     shown = chosen or min(fits, key=lambda f: f.held_out_rms_N)
     paths = write_calibration(fits, choice, args.out, runs=[r.source for r in recordings], scene=args.scene,
-                              overrides=overrides, refused=refused)
+                              overrides=overrides, refused=refused, thrust_samples=args.thrust_samples)
     # The figure is optional post-processing: the calibration is already on disk.
     runs = [r.source for r in recordings if r.source not in {x["run"] for x in refused}]
     if optional("fit.png", _fit_figure, shown.calibration, runs, args.out / "fit.png", shown.form) is not None:
@@ -170,7 +174,7 @@ def set_arguments(fit: FormFit) -> str:
 
 
 def write_calibration(fits: Sequence[FormFit], choice: FormChoice, out: Path, *, runs: list[str], scene: str,
-                      overrides: dict, refused: list[dict[str, str]] = ()) -> list[Path]:
+                      overrides: dict, refused: list[dict[str, str]] = (), thrust_samples: str = "instant") -> list[Path]:
     """calibration.json; set.txt and feather-parameters.toml when the choice is a calibration (the
     figure is drawn separately)."""
     out.mkdir(parents=True, exist_ok=True)
@@ -185,7 +189,7 @@ def write_calibration(fits: Sequence[FormFit], choice: FormChoice, out: Path, *,
                                       "the bins are correlated where the model error dominates, so both overstate the evidence",
               "forms": {f.form: f.as_dict() for f in fits},
               **(chosen.calibration.as_dict() if chosen is not None else {}),
-              "scene": scene, "overrides": overrides, "runs": runs, "refused_runs": list(refused),
+              "scene": scene, "overrides": overrides, "runs": runs, "thrust_samples": thrust_samples, "refused_runs": list(refused),
               "window_s": fits[0].calibration.window_s}
     paths = [out / "calibration.json"]
     paths[0].write_text(json.dumps(json.loads(dumps(report)), indent=2) + "\n")

@@ -125,7 +125,7 @@ def form_fit(form: str, model, fit: Mapping[str, tuple[float, float] | None] | N
 
 def fit_form(form: str, recordings: Sequence[Recording], scene: str, overrides: Mapping[str, Any],
              fit: Mapping[str, tuple[float, float] | None] | None, window_s: float,
-             progress: Callable[[str, str, int], None] | None = None) -> FormFit:
+             progress: Callable[[str, str, int], None] | None = None, thrust_samples: str = "instant") -> FormFit:
     """Fit `form` on all recordings, then each left out in turn (see the module docstring)."""
     form_overrides = {**overrides, "feather.wake": form}
     names = form_fit(form, feather_model(feather_block(scene), form_overrides), fit)
@@ -134,14 +134,15 @@ def fit_form(form: str, recordings: Sequence[Recording], scene: str, overrides: 
         return None if progress is None else (lambda n: progress(form, stage, n))
 
     full = calibrate(recordings, scene, form_overrides, names, window_s=window_s, progress=tick("fit on all runs"),
-                     require_sd=False)
+                     require_sd=False, thrust_samples=thrust_samples)
     simulations = full.evaluations
     squared, per_run = [], {}
     for i, left_out in enumerate(recordings):
         others = [r for j, r in enumerate(recordings) if j != i]
         refit = calibrate(others, scene, form_overrides, names, window_s=window_s, start=full.values,
-                          progress=tick(f"held out {left_out.source}"), require_sd=False)
-        measured, simulated = predict(left_out, scene, form_overrides, {**refit.fixed, **refit.values}, window_s)
+                          progress=tick(f"held out {left_out.source}"), require_sd=False, thrust_samples=thrust_samples)
+        measured, simulated = predict(left_out, scene, form_overrides, {**refit.fixed, **refit.values}, window_s,
+                                      thrust_samples)
         simulations += refit.evaluations + 1
         errors2 = (simulated - measured) ** 2
         squared.append(errors2)
@@ -187,7 +188,7 @@ def choose(fits: Sequence[FormFit]) -> FormChoice:
 def calibrate_forms(recordings: Sequence[Recording], scene: str, overrides: Mapping[str, Any],
                     forms: Sequence[str] = FORMS, fit: Mapping[str, tuple[float, float] | None] | None = None, *,
                     window_s: float | None = None,
-                    progress: Callable[[str, str, int], None] | None = None
+                    progress: Callable[[str, str, int], None] | None = None, thrust_samples: str = "instant"
                     ) -> tuple[list[FormFit], FormChoice, list[dict[str, str]]]:
     """(each form's fit, the choice, the refused recordings) for these recordings."""
     unknown = [f for f in forms if f not in FORMS]
@@ -212,7 +213,7 @@ def calibrate_forms(recordings: Sequence[Recording], scene: str, overrides: Mapp
         why = "; ".join(f"{r['run']}: {r['reason']}" for r in refused)
         raise OptimizerError(f"model-form calibration needs at least 2 usable runs (one is held out), "
                              f"{len(kept)} left{' (refused: ' + why + ')' if why else ''}")
-    fits = [fit_form(form, kept, scene, overrides, fit, window_s, progress) for form in forms]
+    fits = [fit_form(form, kept, scene, overrides, fit, window_s, progress, thrust_samples) for form in forms]
     return fits, choose(fits), refused
 
 

@@ -13,7 +13,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from featherstar.cosim.swimmer.run import run_scene
-from featherstar.optimizer.calibration.fit import Calibration, Coefficient
+from featherstar.optimizer.calibration.fit import Calibration, Coefficient, measured_thrust_N
 from featherstar.optimizer.calibration.forms import BIC_DECISIVE, TIE_SIGMAS, FormFit, choose, usable_recordings
 from featherstar.optimizer.calibration.identify import unidentified
 from featherstar.optimizer.calibration.recordings import Recording
@@ -130,7 +130,7 @@ def test_a_coefficient_the_recordings_cannot_identify_is_reported_not_identified
     out = tmp_path / "cal"
     status = optimizer_main(["calibrate", *map(str, runs), "--window-s", "0.25", "--forms", "none", "--out", str(out),
                              "--set", "feather.morphology=plain", "feather.oscillatory_drag=0",
-                             "--fit", "stroke_amplitude_rad=0.1,3"])
+                             "--fit", "stroke_amplitude_rad=0.1,3", "--thrust-samples", "instant"])
     printed = capsys.readouterr().out
     assert status == 3
     assert f"refused {runs[2]}: incomplete run (gap)" in printed
@@ -154,3 +154,15 @@ def test_the_forms_option_is_checked_before_any_simulation(tmp_path, capsys):
         assert optimizer_main(["calibrate", str(run), str(run), "--window-s", "1", "--out", str(tmp_path / "o"), *argv]) == 2
         err = capsys.readouterr().err.strip()
         assert len(err.splitlines()) == 1 and message in err, err
+
+
+def test_an_interval_mean_thrust_sample_stands_for_its_intervals_middle():
+    """The bench's load cell reports the mean force over the step before each stamp: a ramp
+    F = t read so is t - dt/2 at each stamp, and is read back as the ramp itself."""
+    dt = 0.005
+    t = np.arange(1, 200) * dt
+    mean_before = t - dt / 2    # the mean of F = t over [t - dt, t]
+    ramp = Recording("ramp", t, np.zeros_like(t), mean_before, ("s", "rad", "N"), 1.0)
+    grid = np.linspace(0.1, 0.9, 50)
+    assert np.allclose(measured_thrust_N(ramp, grid, "interval-mean"), grid, atol=1e-12)
+    assert np.allclose(measured_thrust_N(ramp, grid), grid - dt / 2, atol=1e-12)   # default: instant
