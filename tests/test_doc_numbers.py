@@ -30,9 +30,13 @@ DURATION_CLAIM = re.compile(
     r"(?:s|sec|seconds?|min|minutes?|h|hours?)\b|\b(?:a few|several)\s+(?:seconds|minutes|hours)\b"
     r"|\b(?:takes?|took|lasts?|for)\s+(?:hours|minutes)\b",
     re.IGNORECASE)
-#: The commands whose durations the docs quote; a line naming one with a duration needs a marker.
+#: The commands whose durations the docs quote: a line naming one (or any `python ...` /
+#: `featherstar ...` command) with a duration outside the command needs a marker.
 COMMANDS = re.compile(r"featherstar paper|featherstar bench|paper --quick|bench --quick|the test suite|"
-                      r"python -m pytest(?! -m)")
+                      r"`(?:time )?(?:python|featherstar)\b[^`]*`")
+DURATION = re.compile(r"\b\d+(?:\.\d+)?\s*(?:s|min|h|seconds|minutes|hours)\b|\bin a minute\b|\ba few minutes\b")
+#: Docs that other engineers edit this session (the lead wires their durations).
+OTHERS = {"docs/model.md", "docs/bench-loop.md"}
 #: Documents the lead has not wired yet (README.md: the markers are proposed in issue 27's report);
 #: their marked numbers are checked all the same.
 UNWIRED = {"README.md"}
@@ -72,10 +76,12 @@ def test_documented_command_durations_carry_their_source():
     bare = []
     for document in doc_numbers.documents():
         rel = document.relative_to(ROOT).as_posix()
-        if rel in UNWIRED or rel.startswith(GENERATED):
+        if rel in UNWIRED or rel in OTHERS or rel.startswith(GENERATED):
             continue
         for k, line in enumerate(document.read_text(encoding="utf-8").splitlines(), 1):
-            if COMMANDS.search(line) and DURATION_CLAIM.search(line) and not doc_numbers.MARKER.search(line):
+            prose = re.sub(r"`[^`]*`", "", line)
+            if COMMANDS.search(line) and (DURATION.search(prose) or DURATION_CLAIM.search(prose)) \
+                    and not doc_numbers.MARKER.search(line):
                 bare.append(f"{rel}:{k}: {line.strip()[:100]}")
     assert not bare, "durations with no source (add <!-- from docs/results/X.json:KEY -->):\n" + "\n".join(bare)
 

@@ -67,13 +67,17 @@ def writers() -> set[str]:
         text = path.read_text(encoding="utf-8")
         if "save_figure" not in text:
             continue
-        functions = {n.name: n for n in ast.walk(ast.parse(text)) if isinstance(n, ast.FunctionDef)}
+        functions = {n.name: n for n in ast.walk(ast.parse(text)) if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef))}
         calls = {name: _calls(node) for name, node in functions.items()}
         direct = {name for name, c in calls.items() if "save_figure" in c}
         helpers = {h for h in direct if any(a.arg == "fig" for a in functions[h].args.args)}
         users = {name for name, c in calls.items() if c & helpers and name not in helpers}
         rel = path.relative_to(ROOT).as_posix()
         found |= {f"{rel}::{name}" for name in (direct - helpers) | users}
+        outside = ast.parse(text)
+        outside.body = [n for n in outside.body if not isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef))]
+        if "save_figure" in _calls(outside):
+            found.add(f"{rel}::<module>")                  # a figure written by a script's top level
     return found
 
 
