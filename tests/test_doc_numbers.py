@@ -58,7 +58,8 @@ def test_the_check_sees_a_wrong_or_dangling_number(tmp_path):
         "full: 6 min 59 s<!-- from docs/results/x.json:run.wall_s --> wrong\n"
         "about 7 min<!-- from docs/results/x.json:run.wall_s --> ok\n"
         "share 0.12 %<!-- from docs/results/x.json:share*100 --> ok, 0.2 %<!-- from docs/results/x.json:share*100 --> wrong\n"
-        "error 2.9e-3<!-- from docs/results/x.json:rows.0.e --> ok; 27 s<!-- from docs/results/x.json:run.nothing --> gone\n")
+        "error 2.9e-3<!-- from docs/results/x.json:rows.0.e --> ok; 27 s<!-- from docs/results/x.json:run.nothing --> gone\n"
+        "an example: `3 s<!-- from docs/results/x.json:run.wall_s -->` is code, not a quote\n")
     found = doc_numbers.problems(tmp_path)
     assert len(found) == 3, found
     assert "README.md:2" in found[0] and "README.md:4" in found[1] and "no such value" in found[2]
