@@ -80,7 +80,7 @@ def _clean_legend(ax: Any) -> None:
     legend = ax.get_legend()
     if legend is None:
         return
-    handles = list(getattr(legend, "legend_handles", None) or legend.legendHandles)
+    handles = list(legend.legend_handles)
     texts = [t.get_text() for t in legend.get_texts()]
     empty = {label for artist, label in zip(*ax.get_legend_handles_labels()) if _draws_nothing(artist)}
     keep = [k for k, h in enumerate(handles)

@@ -129,7 +129,7 @@ def _legend_problems(ax: Any, where: str) -> list[str]:
     for artist, label in zip(*ax.get_legend_handles_labels()):
         if label in shown and isinstance(artist, BarContainer) and not any(np.isfinite(p.get_height()) for p in artist):
             out.append(f"{where}: legend entry {label!r} stands for no bar")
-    handles = list(getattr(legend, "legend_handles", None) or legend.legendHandles)
+    handles = list(legend.legend_handles)
     for handle, text in zip(handles, legend.get_texts()):
         label = text.get_text()
         if not label.strip():
