@@ -340,7 +340,7 @@ def _sweep_table(normalized: bool) -> list[dict]:
 def _plot_run(tmp: Path) -> None:
     from featherstar.cosim.swimmer.report import plot_run
 
-    for k, kwargs in enumerate(({}, {"complete": False, "excluded": True}, {"robot": True}, {"transient": True})):
+    for k, kwargs in enumerate(({}, {"complete": False, "excluded": True}, {"robot": True, "transient": True})):
         plot_run(_run_result(**kwargs), tmp / f"run{k}.png")
 
 
