@@ -5,7 +5,7 @@ README, docs/ and `--help` quote (bench/_doc_numbers.py; tests/test_doc_numbers.
 A leading underscore: `featherstar bench` does not run it (it times `featherstar bench` itself).
 
     python bench/_cli_durations.py --only paper_quick       # one command, the others kept
-    python bench/_cli_durations.py                          # every command (about an hour on 2 cores)
+    python bench/_cli_durations.py                          # every command, one after the other
 
 Each entry: the command, its wall time, the machine's core count and load average at the start
 (the machine is shared: compare entries measured at similar loads).
@@ -36,6 +36,10 @@ COMMANDS: dict[str, list[list[str]]] = {
     "paper_quick": [["featherstar", "paper", "--quick", "--out", "OUT"]],
     "paper": [["featherstar", "paper", "--out", "OUT"]],
     "bench_quick": [["featherstar", "bench", "--quick", "--out", "OUT"]],
+    "stress_suite": [[sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-m", "stress", "tests/stress"]],
+    "stability_map": [[sys.executable, "bench/stability_map.py", "--out", "OUT"]],
+    "stability_map_quick": [[sys.executable, "bench/stability_map.py", "--quick", "--out", "OUT"]],
+    "guard_margins": [[sys.executable, "bench/guard_margins.py", "--out", "OUT"]],
     "test_suite": [[sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", folder] for folder in _test_folders()],
 }
 

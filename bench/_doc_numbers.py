@@ -32,6 +32,7 @@ QUANTITY = re.compile(
     r"|(?P<num>[-+]?\d[\d\u202f ]*(?:\.\d+)?(?:e[-+]?\d+)?)\s*(?P<unit>min|h|ms|µs|s|%|mN|N|×|x)?)"
     r"[\s*)]*$")
 DURATION_UNITS = {"s": 1.0, "min": 60.0, "h": 3600.0}
+CODE = re.compile(r"`[^`]*`")
 
 
 @dataclass(frozen=True)
@@ -78,6 +79,7 @@ def quotes(document: Path, root: Path = ROOT) -> list[Quote]:
     found = []
     rel = document.relative_to(root).as_posix() if document.is_relative_to(root) else str(document)
     for number, line in enumerate(document.read_text(encoding="utf-8").splitlines(), 1):
+        line = CODE.sub(lambda m: " " * len(m.group(0)), line)     # a marker shown as code is an example
         for marker in MARKER.finditer(line):
             before = MARKER.sub("", line[: marker.start()])
             m = QUANTITY.search(before)

@@ -7,7 +7,8 @@ written through `save_figure`, which finishes it the same way for all writers:
 
 - a discrete axis (periods, iterations, evaluations, repeats) gets integer ticks;
 - a bar chart's value axis starts at zero (bars read by their length);
-- a legend keeps only entries with a visible handle, and goes away with none left.
+- a legend keeps only entries with a visible handle that stand for something drawn (not a bar
+  series of NaNs), and goes away with none left.
 
 `tests/test_figures.py` finds every `save_figure` call site, renders each writer on tiny inputs
 and checks what `observe` hands it: labels with units, titles, non-empty panels, legends.
@@ -66,13 +67,24 @@ def _legend_handle_visible(handle: Any) -> bool:
     return True
 
 
+def _draws_nothing(artist: Any) -> bool:
+    """A bar series with no finite bar (all NaN, or none): its legend entry stands for nothing."""
+    if not isinstance(artist, BarContainer):
+        return False
+    heights = np.array([p.get_width() if getattr(artist, "orientation", "") == "horizontal" else p.get_height()
+                        for p in artist], float)
+    return not np.isfinite(heights).any()
+
+
 def _clean_legend(ax: Any) -> None:
     legend = ax.get_legend()
     if legend is None:
         return
-    handles = list(getattr(legend, "legend_handles", None) or legend.legendHandles)
+    handles = list(legend.legend_handles)
     texts = [t.get_text() for t in legend.get_texts()]
-    keep = [k for k, h in enumerate(handles) if h is not None and _legend_handle_visible(h)]
+    empty = {label for artist, label in zip(*ax.get_legend_handles_labels()) if _draws_nothing(artist)}
+    keep = [k for k, h in enumerate(handles)
+            if h is not None and _legend_handle_visible(h) and texts[k] not in empty]
     if len(keep) == len(handles):
         return
     drawn, labels = ax.get_legend_handles_labels()

@@ -51,8 +51,11 @@ def cold_build(name: str, stream: TextIO | None = None) -> Iterator[None]:
     started = time.perf_counter()
     done = threading.Event()
 
+    # On a terminal, clear the line first: a progress bar may be drawn there (it redraws itself).
+    clear = "\r\033[K" if getattr(out, "isatty", lambda: False)() else ""
+
     def say(text: str) -> None:
-        print(f"featherstar: {text}", file=out, flush=True)
+        print(f"{clear}featherstar: {text}", file=out, flush=True)
 
     def tick() -> None:
         while not done.wait(TICK_S):

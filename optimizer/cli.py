@@ -78,7 +78,7 @@ def _common(parser: argparse.ArgumentParser, *, default_noise_N: float) -> None:
     parser.add_argument("--noise-N", type=number(at_least=0.0), default=default_noise_N, metavar="SD",
                         help=f"load-cell noise sd in newtons (default {default_noise_N:g}; 0 = ideal sensor)")
     parser.add_argument("--seed", type=count(0), default=0, help="seed of the noise and of the optimizer")
-    parser.add_argument("--amplitude-deg", type=number(above=0.0), default=60.0, help="stroke amplitude, peak to peak")
+    parser.add_argument("--amplitude-deg", type=number(above=0.0), default=60.0, help="stroke amplitude in degrees, peak to peak (60: the root swings between -30 and +30)")
 
 
 def _where(parser: argparse.ArgumentParser, *, batches: bool) -> None:
