@@ -75,7 +75,8 @@ def classify(values: Mapping[str, float], verdicts: Mapping[str, bool | None], b
 # Claims read from one optimized stroke (the study that found it): re-validated, not re-optimized,
 # a member's value bounds its own optimum from one side only.
 REVALIDATED_OPTIMUM = {"chordwise_optimized": "chordwise-max", "spanwise_optimized": "spanwise-max",
-                       "plain_optimized": "plain-max", "flapped_best": "chordwise-max", "flapped_worst": "chordwise-min"}
+                       "plain_optimized": "plain-max", "flapped_best": "chordwise-max", "flapped_worst": "chordwise-min",
+                       "useful_thrust": "chordwise-max"}
 
 
 def meaning(claim_id: str, res: Resolution) -> str:
