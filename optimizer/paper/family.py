@@ -139,7 +139,8 @@ def collect(results: Mapping[str, dict]) -> dict[str, dict]:
         if what == "fig5":
             member["symmetric"][key] = result
         elif what == "eval":
-            member["studies"][key] = result if "error" in result else {"summary": result, "revalidated": True}
+            member["studies"][key] = result if "error" in result else {
+                "summary": result, "revalidated": True, "wall_s": result.get("wall_s", 0.0), "sim_s": result.get("sim_s", 0.0)}
         elif what == "study":
             member["studies"][key] = result
         else:
