@@ -16,7 +16,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Any, Callable, Mapping
 
-from ..evaluation import MeasurementPlan, validate
+from ..evaluation import validate
 from ..objective import SceneObjective
 from ..space import stroke_overrides, symmetric_stroke
 from ..study import BEST_VALIDATION_INDEX
@@ -32,7 +32,7 @@ from .plan import (
     feather_overrides,
     study_specs,
 )
-from .tasks import robot_controller, robot_task, study_task
+from .tasks import measurement_plan, robot_controller, robot_task, study_task
 
 Item = tuple[str, Callable, tuple]
 
@@ -41,16 +41,12 @@ def members(res: Resolution) -> list[Member]:
     return [MEMBER_BY_NAME[name] for name in res.family]
 
 
-def _plan(res: Resolution) -> MeasurementPlan:
-    return MeasurementPlan(settle_periods=res.settle_periods, periods=res.periods, seed=res.seed)
-
-
 def validated_stroke_task(family: str, ratio: float | None, period_s: float, stroke: Mapping[str, Any],
                           member: Member, res: Resolution, index: tuple[int, ...]) -> dict:
     """A fixed stroke's validation (the report's sets of periods) under `member`; with the default
     model's index and no overrides it is the default's own validation, number for number."""
     objective = SceneObjective("testbed", {**feather_overrides(family, ratio), **dict(member.overrides)})
-    out = validate(objective, dict(stroke), period_s, _plan(res), index, repeats=res.validation_repeats,
+    out = validate(objective, dict(stroke), period_s, measurement_plan(res), index, repeats=res.validation_repeats,
                    periods=res.validation_periods).as_dict()
     out["sim_s"] = (res.settle_periods + res.validation_repeats * res.validation_periods) * period_s
     return out
@@ -143,7 +139,8 @@ def collect(results: Mapping[str, dict]) -> dict[str, dict]:
         if what == "fig5":
             member["symmetric"][key] = result
         elif what == "eval":
-            member["studies"][key] = result if "error" in result else {"summary": result, "revalidated": True}
+            member["studies"][key] = result if "error" in result else {
+                "summary": result, "revalidated": True, "wall_s": result.get("wall_s", 0.0), "sim_s": result.get("sim_s", 0.0)}
         elif what == "study":
             member["studies"][key] = result
         else:

@@ -10,7 +10,10 @@ also in `DIR/paper.json`. Experiments are independent tasks on an `Executor` (lo
 Dask cluster): the optimizer studies (best and worst controller per feather, Fig. 7's strokes), the
 symmetric-stroke runs, the sweep runs, and the robot runs, which start as soon as the study giving
 their controller is done. A failing task is recorded and reported; it does not sink the report.
-Figures: `paper_figures`; the claims table and the markdown: `paper_report`.
+Figures: `paper_figures`; the claims table and the markdown: `paper_report`. Every claim is also
+judged under the feather's model family (`res.family`): `family` plans those runs as more tasks of
+the same log, `robustness` gives each claim its range and whether the model decides it. The
+experiments themselves are in `tasks`.
 """
 from __future__ import annotations
 

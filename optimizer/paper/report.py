@@ -221,17 +221,17 @@ def write_markdown(path: Path, data: Mapping, table: list[dict], figures: Mappin
         "## How to read this\n", HOW_TO_READ,
         f"## The paper's numbers beside the simulation ({agree} of {judged} agree)\n",
     ]
-    family = bool(table) and "robust" in table[0]
-    if family:
+    has_family = bool(table) and "robust" in table[0]
+    if has_family:
         lines.append(family_summary(table, res) + "\n")
     lines += ["| # | claim | where | paper | simulated | band | agrees | " + ("model family: range (ends) | verdict | "
-              if family else "") + "note |", "|---|---|---|---|---|---|---|" + ("---|---|" if family else "") + "---|"]
+              if has_family else "") + "note |", "|---|---|---|---|---|---|---|" + ("---|---|" if has_family else "") + "---|"]
     for i, row in enumerate(table, 1):
         lo, hi = row["band"]
         band = "—" if lo == INF else f"> {lo:g}" if hi == INF else f"< {hi:g}" if lo == -INF else f"{lo:g}–{hi:g}"
         verdict = {True: "yes", False: "**no**", None: "n/a"}[row["agrees"]]
         lines.append(f"| {i} | {row['claim']} | {row['source']} | {row['paper']} | {row['simulated_text']} | "
-                     f"{band} | {verdict} | " + (range_cells(row) if family else "") + f"{row['note']} |")
+                     f"{band} | {verdict} | " + (range_cells(row) if has_family else "") + f"{row['note']} |")
     lines.append("\n## Figures\n")
     sweep = data["sweep"]["table"]
     counts = {f: len(sweep_geometries(f, res.sweep_geometries)) - 1 for f in ("chordwise", "spanwise")}
@@ -279,11 +279,12 @@ def write_markdown(path: Path, data: Mapping, table: list[dict], figures: Mappin
     _figure(lines, figures, "fig9", "Fig. 9: robot displacement and speed, best and worst controllers",
             f"The robot scene run for {res.robot_periods} periods with each feather pair and controller (baseline "
             f"added); mean speed over the periods after the first {res.robot_settle_periods}.")
-    if family:
+    if has_family:
         lines += family_section(data, table, res, timing)
     gaps = [row for row in table if row["agrees"] is False]
     lines.append("## Where the model does not reproduce the paper\n")
     lines += [f"- **{row['claim']}** (paper {row['paper']}, simulated {row['simulated_text']}): {row['note']}"
+              + (f" Over the model family: {row['robust']} ({row['robust_reason']})." if has_family else "")
               for row in gaps] or ["Every claim agrees at this resolution."]
     lines += ["", "## Resolution\n", f"| setting | this run ({res.name}) | full |", "|---|---|---|"]
     full = FULL.describe()

@@ -72,6 +72,13 @@ def classify(values: Mapping[str, float], verdicts: Mapping[str, bool | None], b
     return UNDECIDED, f"agrees under {', '.join(agree)}; not under {', '.join(n for n in values if n not in agree)}"
 
 
+# Claims read from one optimized stroke (the study that found it): re-validated, not re-optimized,
+# a member's value bounds its own optimum from one side only.
+REVALIDATED_OPTIMUM = {"chordwise_optimized": "chordwise-max", "spanwise_optimized": "spanwise-max",
+                       "plain_optimized": "plain-max", "flapped_best": "chordwise-max", "flapped_worst": "chordwise-min",
+                       "useful_thrust": "chordwise-max"}
+
+
 def meaning(claim_id: str, res: Resolution) -> str:
     """What a claim's range is: the members' own answer, or the default's prediction re-measured."""
     reoptimized = lambda key: key in res.reoptimize  # noqa: E731
@@ -107,6 +114,11 @@ def family_table(data: Mapping, table: list[dict], res: Resolution, claims: Call
         values = {DEFAULT: row["simulated"], **{n: by_member[n][i]["simulated"] for n in names}}
         verdicts = {DEFAULT: row["agrees"], **{n: by_member[n][i]["agrees"] for n in names}}
         verdict, why = classify(values, verdicts, tuple(row["band"]), errors)
+        study = REVALIDATED_OPTIMUM.get(row["id"])
+        if verdict == DISAGREES and study and study not in res.reoptimize:
+            why += ("; the members' values are the default's optimum re-validated, and a member's own "
+                    f"{'best' if study.endswith('max') else 'worst'} can only be "
+                    f"{'higher' if study.endswith('max') else 'lower'}: re-optimizing could change this verdict")
         finite = {n: v for n, v in values.items() if _finite(v)}
         ends = [min(finite, key=finite.get), max(finite, key=finite.get)] if finite else [None, None]
         out.append({**row, "family": values, "family_agrees": verdicts,

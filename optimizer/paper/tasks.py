@@ -21,6 +21,7 @@ from ..study import summarize
 from ..sweep import Task, run_task
 from .plan import MORPHOLOGIES, PERIOD_S, ROBOT_SAMPLE_S, Resolution, StudySpec, feather_overrides
 
+
 def guarded(fn: Callable[..., dict], *args: Any) -> dict:
     """Exceptions become data (some of ours do not pickle, and one failure must not sink the report)."""
     started = time.perf_counter()
@@ -32,7 +33,8 @@ def guarded(fn: Callable[..., dict], *args: Any) -> dict:
     return out
 
 
-def _plan(res: Resolution) -> MeasurementPlan:
+def measurement_plan(res: Resolution) -> MeasurementPlan:
+    """The test bed's measurement at `res` (settling, periods per evaluation, noise seed)."""
     return MeasurementPlan(settle_periods=res.settle_periods, periods=res.periods, seed=res.seed)
 
 
@@ -42,7 +44,7 @@ def study_task(spec: StudySpec, res: Resolution, model: Mapping[str, Any] | None
     feather = {**feather_overrides(spec.family, spec.ratio), **(model or {})}
     objective = SceneObjective("testbed", feather)
     space = stroke_space(spec.period_s)
-    plan = _plan(res)
+    plan = measurement_plan(res)
     # The log is the worker's scratch (the task may run on another host); the result carries it all.
     with tempfile.TemporaryDirectory(prefix="featherstar-paper-") as log_dir:
         run = optimize(
@@ -129,7 +131,6 @@ def robot_task(family: str, controller: str, overrides: dict, res: Resolution) -
         "mean_speed_m_s": s.get("mean_speed_m_s", math.nan), "thrust_ratio": s.get("thrust_ratio", math.nan),
         "mean_thrust_N": s.get("mean_thrust_N", math.nan), "sim_s": float(t[-1] - t[0]),
     }
-
 
 
 def robot_controller(family: str, controller: str, results: dict) -> dict | str:

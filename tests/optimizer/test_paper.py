@@ -93,7 +93,7 @@ def test_the_family_measures_the_default_model_exactly_as_the_report_does(report
     """Under no overrides the family's measurement of a stroke reproduces the default's own numbers
     (the same run, sets and noise): a member's value differs from the default's by its model only."""
     data = json.loads((report.parent / "paper.json").read_text())
-    default = Member("default", ())
+    default = Member("default", (), "the default model")
     study = data["studies"]["chordwise-max"]
     again = validated_stroke_task("chordwise", 7.5, PERIOD_S, study["best_overrides"], default, TINY,
                                   BEST_VALIDATION_INDEX)
