@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 from featherstar.optimizer.bench.discrepancy import DiscrepancyOptimizer, SimulationModel
 from featherstar.optimizer.bench.sim_prior import SimPrior
 from featherstar.optimizer.bench.study import run_bench_study, validated_best
+from featherstar.optimizer.cli import main as optimizer_main
 from featherstar.optimizer.errors import OptimizerError
 from featherstar.optimizer.evaluation import MeasurementPlan
 from featherstar.optimizer.loadcell import LoadCell
@@ -158,3 +159,14 @@ def test_an_unknown_prior_use_is_refused(tmp_path):
     with pytest.raises(OptimizerError, match="prior use 'mixed': valid values are seed, discrepancy"):
         run_bench_study(SyntheticBench(SyntheticFeather(), {}), SPACE, tmp_path, plan=PLAN, iterations=4,
                         prior=synthetic_prior(tmp_path), prior_use="mixed")
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--prior-use", "discrepancy"], "--prior-use applies to a study on the bench"),
+    (["--hardware", "servo=modbus-tcp://127.0.0.1:1?unit=2", "--hardware", "loadcell=modbus-tcp://127.0.0.1:1?unit=1",
+      "--prior-use", "discrepancy"], "--prior-use discrepancy needs --prior DIR"),
+])
+def test_prior_use_without_its_setting_is_refused_in_one_line(tmp_path, capsys, args, message):
+    assert optimizer_main(["optimize", "testbed", "--out", str(tmp_path / "out"), *args]) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and len(err.splitlines()) == 1
