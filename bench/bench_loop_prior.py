@@ -118,7 +118,12 @@ def main() -> None:
     parser.add_argument("--iterations", type=int, default=10)
     parser.add_argument("--sim-iterations", type=int, default=20, help="the simulated study's evaluations")
     parser.add_argument("--out", type=Path, default=Path(__file__).parent.parent / "docs" / "results")
+    parser.add_argument("--reanalyse", action="store_true",
+                        help="no bench: redo the analysis and the plot of OUT/bench_loop_prior.json's studies")
     args = parser.parse_args()
+    if args.reanalyse:
+        write(json.loads((args.out / "bench_loop_prior.json").read_text()), args.out)
+        return
     seeds, iterations, sim_iterations = (2, 4, 10) if args.quick else (args.seeds, args.iterations,
                                                                         args.sim_iterations)
     logging.getLogger("hil").setLevel(logging.ERROR)
@@ -147,6 +152,25 @@ def main() -> None:
                           f"{study['wall_s']:.0f} s)", flush=True)
         finally:
             emulator.stop()
+    result = {
+        "question": f"bench iterations to reach {TARGET:.0%} of the best measured TR: no prior, seeded prior, "
+                    "discrepancy prior, on a bench whose physics differ from the simulation's",
+        "simulated_prior_best_thrust_ratio": max(prior.values), "simulation_gp_holdout": holdout,
+        "studies": studies,
+        "setup": {"feather": FEATHER, "simulation": "testbed scene, default coefficients, wake none (quasi-steady)",
+                  "hidden_plant": HIDDEN, "emulator": "FMU plant (servo + plain feather), noise 5 mN, device-timed",
+                  "rest_s": REST_S, "period_s": PERIOD_S, "settle_periods": 1, "measured_periods": 2,
+                  "iterations": iterations, "sim_iterations": sim_iterations, "seeds": seeds, "quick": args.quick},
+        "wall_s": time.perf_counter() - started,
+        "machine": {"python": platform.python_version(), "cpus": os.cpu_count(), "load_average": os.getloadavg()},
+    }
+    write(result, args.out)
+
+
+def analyse(result: dict) -> dict:
+    """The arms' iterations to target, the issue's two targets, the bench's repeatability and
+    the simulation's agreement with the bench, from the studies (so --reanalyse can redo them)."""
+    studies, iterations = result["studies"], result["setup"]["iterations"]
     best = max(max(s["observed_thrust_ratio"]) for s in studies)
     for s in studies:
         s["iterations_to_target"] = iterations_to(s["observed_thrust_ratio"], TARGET * best)
@@ -165,28 +189,41 @@ def main() -> None:
                arms["discrepancy_prior"]["mean_iterations"] <= 0.5 * arms["no_prior"]["mean_iterations"],
                "discrepancy_never_more_than_one_worse_than_no_prior": max(worse) <= 1,
                "discrepancy_minus_no_prior_per_seed": worse}
-    result = {
-        "question": f"bench iterations to reach {TARGET:.0%} of the best measured TR: no prior, seeded prior, "
-                    "discrepancy prior, on a bench whose physics differ from the simulation's",
-        "best_measured_thrust_ratio": best, "target_thrust_ratio": TARGET * best,
-        "simulated_prior_best_thrust_ratio": max(prior.values), "simulation_gp_holdout": holdout,
-        "arms": arms, "targets": targets, "studies": studies,
-        "setup": {"feather": FEATHER, "simulation": "testbed scene, default coefficients, wake none (quasi-steady)",
-                  "hidden_plant": HIDDEN, "emulator": "FMU plant (servo + plain feather), noise 5 mN, device-timed",
-                  "rest_s": REST_S, "period_s": PERIOD_S, "settle_periods": 1, "measured_periods": 2,
-                  "iterations": iterations, "sim_iterations": sim_iterations, "seeds": seeds, "quick": args.quick},
-        "wall_s": time.perf_counter() - started,
-        "machine": {"python": platform.python_version(), "cpus": os.cpu_count(), "load_average": os.getloadavg()},
-    }
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "bench_loop_prior.json").write_text(json.dumps(result, indent=2) + "\n")
-    _figure(studies, TARGET * best, args.out / "bench_loop_prior.png")
+    # The same strokes measured once per seed: the seeded arm's initial design and the discrepancy
+    # arm's first stroke do not depend on the seed, so their spread is the bench's repeatability.
+    same = [[s["observed_thrust_ratio"][i] for s in studies if s["arm"] == "seeded_prior"] for i in range(4)]
+    same.append([s["observed_thrust_ratio"][0] for s in studies if s["arm"] == "discrepancy_prior"])
+    same = [x for x in same if len(x) > 1]
+    baselines = [s["baseline_thrust_ratio"] for s in studies]
+    pairs = [(sim, bench) for s in studies if s["arm"] == "discrepancy_prior"
+             for sim, bench in zip(s["simulated_thrust_ratio"] or [], s["observed_thrust_ratio"])]
+    sim, bench = np.array(pairs).T if pairs else (np.array([]), np.array([]))
+    return {**result, "best_measured_thrust_ratio": best, "target_thrust_ratio": TARGET * best, "arms": arms,
+            "targets": targets,
+            "repeatability": {
+                "same_stroke_sd_thrust_ratio": [float(np.std(x, ddof=1)) for x in same],
+                "pooled_sd_thrust_ratio": float(np.sqrt(np.mean([np.var(x, ddof=1) for x in same]))) if same else None,
+                "baseline_validations": {"mean": float(np.mean(baselines)), "sd": float(np.std(baselines, ddof=1))}},
+            "simulation_vs_bench": {
+                "strokes": len(pairs), "mean_bench_minus_sim": float(np.mean(bench - sim)) if pairs else None,
+                "correlation": float(np.corrcoef(sim, bench)[0, 1]) if len(pairs) > 2 else None,
+                "rho_fitted": [(s["model"] or {}).get("rho") for s in studies if s["arm"] == "discrepancy_prior"]}}
+
+
+def write(result: dict, out: Path) -> None:
+    result = analyse(result)
+    arms, targets = result["arms"], result["targets"]
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "bench_loop_prior.json").write_text(json.dumps(result, indent=2) + "\n")
+    _figure(result["studies"], result["target_thrust_ratio"], out / "bench_loop_prior.png")
     for name, arm in arms.items():
         print(f"{name}: iterations to {TARGET:.0%} of best TR {arm['iterations_to_target']} "
               f"(mean {arm['mean_iterations']:.1f}, {arm['reached']}/{arm['studies']} reached; "
               f"{arm['below_baseline']} validated below the baseline)")
     print(f"targets: {json.dumps(targets)}")
-    print(f"wrote {args.out / 'bench_loop_prior.json'} and bench_loop_prior.png ({result['wall_s']:.0f} s)")
+    print(f"repeatability: {json.dumps(result['repeatability'])}")
+    print(f"simulation vs bench: {json.dumps(result['simulation_vs_bench'])}")
+    print(f"wrote {out / 'bench_loop_prior.json'} and bench_loop_prior.png ({result['wall_s']:.0f} s of bench)")
 
 
 def _figure(studies: list[dict], target: float, path: Path) -> None:

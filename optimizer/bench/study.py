@@ -34,7 +34,6 @@ from ..acquisition import DEFAULT_EXPLORATION_RATIO
 from ..bayes import DEFAULT_INITIAL_POINTS, OptimizationRun, StrokeOptimizer
 from ..errors import OptimizerError
 from ..evaluation import ITERATION_STREAM, MeasurementPlan, evaluate, validate
-from ..objective import Objective
 from ..log import ExperimentLog
 from ..resume import Entries, check_log
 from ..space import SearchSpace
@@ -72,7 +71,6 @@ def run_bench_study(
     validation_periods: int = BENCH_VALIDATION_PERIODS,
     prior: SimPrior | None = None,
     prior_use: str = "seed",
-    simulation: tuple[Objective, MeasurementPlan] | None = None,
     label: str = "feather",
     compare: tuple[Mapping, ...] = (),
     on_record: Callable[[dict], None] | None = None,
@@ -83,8 +81,8 @@ def run_bench_study(
     `plan` must read the bench's thrust as recorded (no added noise). `on_record` sees every new
     log record (progress display). Raises BenchFault (study paused, resumable) on a device fault.
     `prior_use`: "seed" (the prior's best strokes are the initial design) or "discrepancy" (the
-    surrogate is the prior's simulation plus a learned discrepancy; `simulation` is the objective
-    and plan simulated at each bench stroke, default `prior.simulation()`).
+    surrogate is the prior's simulation plus a learned discrepancy; each bench stroke is also
+    simulated, by `prior.simulation()`).
     """
     if prior_use not in PRIOR_USES:
         raise OptimizerError(f"prior use {prior_use!r}: valid values are {', '.join(PRIOR_USES)}")
@@ -116,11 +114,15 @@ def run_bench_study(
     check_in_order(log)
     study = _Study(log, on_record)
     evaluations = study.of_kind("evaluation")
+    if study.of_kind("validation") and len(evaluations) < iterations:
+        raise OptimizerError(f"{log.path}: the study was already validated after {len(evaluations)} evaluations; "
+                             f"its best cannot change now (the reported TR is that validation's): start a new "
+                             f"--out to run {iterations}")
     simulations = {r["index"]: r for r in study.of_kind("simulation")}
     if discrepancy:
         optimizer = DiscrepancyOptimizer(space, SimulationModel(space, prior.points, prior.values, seed=plan.seed),
                                          maximize=maximize, exploration_ratio=exploration_ratio, seed=plan.seed)
-        sim_objective, sim_plan = simulation or prior.simulation()
+        sim_objective, sim_plan = prior.simulation()
         initial = []
         for r in evaluations:
             optimizer.tell_simulation(r["params"], simulations[r["index"]]["thrust_ratio"])

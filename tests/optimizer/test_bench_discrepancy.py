@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 from featherstar.optimizer.bench.discrepancy import DiscrepancyOptimizer, SimulationModel
 from featherstar.optimizer.bench.sim_prior import SimPrior
 from featherstar.optimizer.bench.study import run_bench_study, validated_best
+from featherstar.optimizer.cli import main as optimizer_main
 from featherstar.optimizer.errors import OptimizerError
 from featherstar.optimizer.evaluation import MeasurementPlan
 from featherstar.optimizer.loadcell import LoadCell
@@ -137,24 +138,50 @@ def test_a_bench_study_with_the_discrepancy_prior_logs_each_simulation_once_and_
     # The "bench" folds its flaps twice as slowly as the simulation says: a model-form bias.
     bench = SyntheticBench(SyntheticFeather(morphology="chordwise", fold_time_s=2.0), {})
     prior = synthetic_prior(tmp_path)
-    kwargs = dict(plan=PLAN, validation_repeats=1, validation_periods=1, prior=prior, prior_use="discrepancy")
-    run_bench_study(bench, SPACE, tmp_path / "a", iterations=2, **kwargs)
-    summary = run_bench_study(bench, SPACE, tmp_path / "a", iterations=4, resume=True, **kwargs)
-    uninterrupted = run_bench_study(bench, SPACE, tmp_path / "b", iterations=4, **kwargs)
+    kwargs = dict(plan=PLAN, iterations=3, validation_repeats=1, validation_periods=1, prior=prior,
+                  prior_use="discrepancy")
+    uninterrupted = run_bench_study(bench, SPACE, tmp_path / "b", **kwargs)
+    lines = (tmp_path / "b" / "evaluations.jsonl").read_text().splitlines()
+    # Interrupted during evaluation 2's bench run: its simulation is logged, its evaluation not.
+    cut = next(i for i, line in enumerate(lines) if '"evaluation"' in line and '"index": 2' in line)
+    (tmp_path / "a").mkdir()
+    (tmp_path / "a" / "evaluations.jsonl").write_text("\n".join(lines[:cut]) + "\n")
+    summary = run_bench_study(bench, SPACE, tmp_path / "a", resume=True, **kwargs)
     records = [json.loads(line) for line in (tmp_path / "a" / "evaluations.jsonl").read_text().splitlines()[1:]]
     simulations = [r for r in records if r["kind"] == "simulation"]
     evaluations = [r for r in records if r["kind"] == "evaluation"]
-    assert [r["index"] for r in simulations] == list(range(4))
+    assert [r["index"] for r in simulations] == [0, 1, 2]   # the one in flight reused, not rerun
     assert [r["params"] for r in simulations] == [r["params"] for r in evaluations]
     assert evaluations[0]["params"] == SimulationModel(SPACE, prior.points, prior.values,
                                                        seed=PLAN.seed).best_point(True)
     assert summary["best_params"] == uninterrupted["best_params"]
-    assert summary["prior"]["use"] == "discrepancy" and summary["prior"]["simulations"] == 4
+    assert summary["thrust_ratio"] == uninterrupted["thrust_ratio"]
+    assert summary["prior"]["use"] == "discrepancy" and summary["prior"]["simulations"] == 3
     assert summary["reported_thrust_ratio"] == summary["thrust_ratio"]
     assert summary["below_baseline"] is (summary["thrust_ratio"] < summary["baseline_thrust_ratio"])
+
+
+def test_a_finished_study_is_not_resumed_with_a_larger_budget(tmp_path):
+    # Its validation measured the old best; the new one would be reported with the old one's TR.
+    bench = SyntheticBench(SyntheticFeather(morphology="chordwise"), {})
+    kwargs = dict(plan=PLAN, validation_repeats=1, validation_periods=1)
+    run_bench_study(bench, SPACE, tmp_path, iterations=4, **kwargs)
+    with pytest.raises(OptimizerError, match="already validated after 4 evaluations"):
+        run_bench_study(bench, SPACE, tmp_path, iterations=5, resume=True, **kwargs)
 
 
 def test_an_unknown_prior_use_is_refused(tmp_path):
     with pytest.raises(OptimizerError, match="prior use 'mixed': valid values are seed, discrepancy"):
         run_bench_study(SyntheticBench(SyntheticFeather(), {}), SPACE, tmp_path, plan=PLAN, iterations=4,
                         prior=synthetic_prior(tmp_path), prior_use="mixed")
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--prior-use", "discrepancy"], "--prior-use applies to a study on the bench"),
+    (["--hardware", "servo=modbus-tcp://127.0.0.1:1?unit=2", "--hardware", "loadcell=modbus-tcp://127.0.0.1:1?unit=1",
+      "--prior-use", "discrepancy"], "--prior-use discrepancy needs --prior DIR"),
+])
+def test_prior_use_without_its_setting_is_refused_in_one_line(tmp_path, capsys, args, message):
+    assert optimizer_main(["optimize", "testbed", "--out", str(tmp_path / "out"), *args]) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and len(err.splitlines()) == 1
