@@ -42,6 +42,7 @@ import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_calibration import _offline_run, _urls  # noqa: E402
+from featherstar.cosim.plotstyle import save_figure  # noqa: E402
 from featherstar.fmu_src.fluid import WAKE_CONSTANTS  # noqa: E402
 from featherstar.hil.emulator import spawn_emulator  # noqa: E402
 from featherstar.optimizer.bench.objective import discard_reasons  # noqa: E402
@@ -155,9 +156,10 @@ def plot(rows: list[dict], path: Path) -> None:
         for k, r in enumerate(mine):
             for m, (name, e) in enumerate(r["true_form_relative_error"].items()):
                 b.plot(i + (m - 0.5) * 0.25, 100 * e, "os"[m % 2], ms=4, color=f"C{m}",
-                       label=name.replace("wake_", "") if i == 0 and k == 0 else None)
+                       label=name.replace("wake_", "").replace("_", " ") if i == 0 and k == 0 else None)
     for ax in (a, b):
         ax.set_xticks(range(len(laws)), [f"true: {law}" for law in laws])
+        ax.set_xlabel("the plant's wake model")
     a.set_ylabel("held-out RMS / best form's")
     a.set_title("held-out error of each fitted form (hits/cases at top)", fontsize=9)
     a.legend(fontsize=7)
@@ -166,8 +168,7 @@ def plot(rows: list[dict], path: Path) -> None:
     b.set_title("coefficients of the true form's fit (±15 % band)", fontsize=9)
     b.legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save_figure(fig, path, dpi=120)
 
 
 def main() -> None:

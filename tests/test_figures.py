@@ -370,7 +370,7 @@ def _fit(tmp: Path) -> None:
     bins = np.linspace(0, 3, 60)
     result = SimpleNamespace(bin_times_s=bins, measured_N=np.array([0.003 * np.sin(bins), 0.003 * np.cos(bins)]),
                              simulated_N=np.array([0.003 * np.sin(bins)]), rms_residual_N=0.0004, r_squared=0.93)
-    _fit_figure(result, ["run-1", "run-2"], tmp / "fit.png")
+    _fit_figure(result, ["run-1", "run-2"], tmp / "fit.png", "plate")
 
 
 def _symmetric() -> dict:
@@ -454,6 +454,8 @@ def _bench_case(name: str) -> Callable[[Path], None]:
                     for mo in ("strong", "jacobi") for p in (1, 2, 3)]
             m.plot({"scenes": [{"scene": "testbed", "metric": "TR", "runs": runs, "chaos_floor": {"estimate": 1e-3}}]},
                    tmp / "w.png")
+        elif name == "bench_model_form_calibration":
+            m.plot(_json(name)["cases"], tmp / "f.png")
         elif name == "mixed_coupling":
             m.plot(_json(name), tmp)
         elif name == "_peers_report":
@@ -474,7 +476,7 @@ CASES: dict[str, Callable[[Path], None]] = {
     "bench/bench_calibration.py::plot": _bench_case("bench_calibration"),
     "bench/bench_loop_prior.py::_figure": _bench_case("bench_loop_prior"),
     **{f"bench/{n}.py::plot": _bench_case(n) for n in (
-        "_peers_report", "cosim_work_precision", "drag_convergence", "feather_speed", "flap_mechanisms", "fmu_models",
+        "_peers_report", "bench_model_form_calibration", "cosim_work_precision", "drag_convergence", "feather_speed", "flap_mechanisms", "fmu_models",
         "hil_loop_rate", "mixed_coupling", "optimizer_speed", "stability_map", "wake_memory")},
 }
 
