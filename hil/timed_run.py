@@ -247,9 +247,11 @@ class _TimedRun:
                                     "detail": f"{lost} samples overwritten before they were read"})
         state = self._guarded("servo", lambda: player_state(self.servo))
         if state is PlayerState.IDLE and self.t_s > 0:
-            # A restart between the session read above and this one also stops the player:
-            # read the session again so the fault names the cause.
+            # A restart between the session reads above and this one also stops the player:
+            # read both sessions again so the fault names the cause (a gateway restarts both
+            # devices; a loaded PC may have read the load cell's session just before).
             self._check_session("servo", self.servo)
+            self._check_session("loadcell", self.cell)
             restarted = any(e["kind"] == "restart" and e["device"] == "servo"
                             for e in self.events)
             raise DeviceFault("servo", "device_error", self.t_s,
