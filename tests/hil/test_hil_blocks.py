@@ -48,7 +48,7 @@ def test_blocks_read_sensible_values_from_a_flapping_feather(make_emulator, lc_m
     try:
         assert abs(cell.get_outputs()["thrust_N"]) < 0.05      # tared at rest
         h, t, t0 = 0.005, 0.0, time.monotonic()
-        thrust, angle = [], []
+        thrust, angle, rate = [], [], []
         while t < 1.0:
             servo.set_inputs({"setpoint_rad": 0.6 * math.sin(2 * math.pi * 1.5 * t)})
             servo.do_step(t, h)
@@ -57,6 +57,7 @@ def test_blocks_read_sensible_values_from_a_flapping_feather(make_emulator, lc_m
             time.sleep(max(0.0, t0 + t - time.monotonic()))
             thrust.append(cell.get_outputs()["thrust_N"])
             angle.append(servo.get_outputs()["angle_rad"])
+            rate.append(servo.get_outputs()["rate_rad_s"])
         # A 12 x 7.5 cm plate flapped at +-0.6 rad, 1.5 Hz: about a newton, both signs. A
         # stalled test process catches up in a burst of steps, which the servo feels as a
         # setpoint step: spikes of several N, so only the bulk is bounded tightly.
@@ -65,7 +66,9 @@ def test_blocks_read_sensible_values_from_a_flapping_feather(make_emulator, lc_m
         assert max(map(abs, thrust)) < 29.4          # never beyond the cell's capacity
         assert 0.3 < max(angle) < 0.65 and -0.65 < min(angle) < -0.3
         assert servo.estimate_source == "readback"
-        assert abs(servo.get_outputs()["rate_rad_s"]) < 7.0
+        # the rate is a difference over read times: two reads of a catching-up burst, close
+        # together, amplify the read-back's quantisation (22 rad/s seen on a loaded PC)
+        assert sorted(map(abs, rate))[int(0.8 * len(rate))] < 7.0
     finally:
         servo.close()
         cell.close()
