@@ -4,6 +4,9 @@ for the cores (`python -c "while True: pass"` x --busy).
 
     python bench/bench_timed_load.py --plant fmu --repeats 2 --out docs/results/timed_vs_streaming_load.json
 
+(the PNG beside the JSON; `--plot JSON` redraws it). The 10-iteration `optimize --hardware`
+under the same load is bench/bench_timed_optimize.py.
+
 Each run is a fresh `featherstar run` process (4 stroke periods, 3 measured) against one
 emulator process, SETTLE_S after the previous one (a bench waits for the feather to come to rest
 before it tares); the busy processes start before the run and are killed after it. TR error is
@@ -91,14 +94,50 @@ def summarise(runs: list[dict], busy: int) -> dict:
     return table
 
 
+def plot(result: dict, path: Path) -> None:
+    """Valid-period share and TR of every run, by mode and load."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    runs = result["runs"]
+    cases = [(c, b) for c in ("pc", "device") for b in sorted({r["busy_processes"] for r in runs})]
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 4))
+    for i, (clock, busy) in enumerate(cases):
+        rs = [r for r in runs if r["clock"] == clock and r["busy_processes"] == busy]
+        ax1.plot([i] * len(rs), [r["valid_share"] for r in rs], "o", color="tab:blue")
+        trs = [_number(r["thrust_ratio"]) for r in rs if r["complete"]]
+        ax2.plot([i] * len(trs), trs, "s", color="tab:green")
+    labels = [f"clock={c}\n{b} busy" for c, b in cases]
+    for ax in (ax1, ax2):
+        ax.set_xticks(range(len(cases)), labels)
+        ax.set_xlim(-0.5, len(cases) - 0.5)
+    ax1.axhline(0.9, color="k", ls="--", lw=0.8, label="90 % (issue 25)")
+    ax1.set_ylabel("valid share of the measured periods")
+    ax1.set_ylim(-0.05, 1.05)
+    ax1.legend(fontsize=8)
+    quiet = (result["summary"].get("device, 0 busy") or {}).get("tr_quiet_mean")
+    if quiet:
+        ax2.axhspan(quiet * 0.98, quiet * 1.02, color="0.85", label="device quiet mean ±2 %")
+        ax2.legend(fontsize=8)
+    ax2.set_ylabel("TR of complete runs")
+    fig.suptitle("featherstar run testbed --hardware: streamed vs device-timed, quiet vs loaded")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--plant", choices=("fmu", "flat-plate"), default="fmu")
     parser.add_argument("--busy", type=int, default=2)
     parser.add_argument("--repeats", type=int, default=2)
     parser.add_argument("--periods", type=int, default=4)
-    parser.add_argument("--out", type=Path)
+    parser.add_argument("--out", type=Path, help="JSON; the PNG next to it")
+    parser.add_argument("--plot", type=Path, metavar="JSON", help="only draw the PNG of a result")
     args = parser.parse_args()
+    if args.plot:
+        plot(json.loads(args.plot.read_text()), args.plot.with_suffix(".png"))
+        return
     runs = []
     with spawn_emulator(plant=args.plant, seed=1, start_timeout_s=600) as emulator:
         for _ in range(args.repeats):
@@ -114,6 +153,7 @@ def main() -> None:
     print(json.dumps(table, indent=2))
     if args.out:
         args.out.write_text(json.dumps(result, indent=2) + "\n")
+        plot(result, args.out.with_suffix(".png"))
 
 
 if __name__ == "__main__":

@@ -113,6 +113,10 @@ def plot(result: dict, path: Path) -> None:
         if pairs:
             ax2.plot([p["tr_quiet"] for p in pairs], [p["tr_loaded"] for p in pairs], marker,
                      label=f"clock={clock} ({len(pairs)} same strokes)")
+    repeat = result.get("quiet_repeat", {}).get("pairs", [])
+    if repeat:   # the same strokes, two quiet studies: the feather's own run-to-run scatter
+        ax2.plot([p["tr_quiet"] for p in repeat], [p["tr_loaded"] for p in repeat], "x", color="k",
+                 label=f"clock=device, quiet vs quiet ({len(repeat)})")
     lo, hi = ax2.get_xlim()
     ax2.plot([lo, hi], [lo, hi], "k-", lw=0.6)
     ax2.fill_between([lo, hi], [lo * 0.98, hi * 0.98], [lo * 1.02, hi * 1.02], color="0.85",
@@ -136,23 +140,37 @@ def main() -> None:
     parser.add_argument("--validation-repeats", type=int, default=2)
     parser.add_argument("--validation-periods", type=int, default=2)
     parser.add_argument("--clocks", default="device,pc")
+    parser.add_argument("--keep", type=Path, metavar="JSON",
+                        help="take the studies of the other clocks from this earlier result")
     parser.add_argument("--out", type=Path)
+    parser.add_argument("--plot", type=Path, metavar="JSON", help="only draw the PNG of a result")
     args = parser.parse_args()
+    if args.plot:
+        plot(json.loads(args.plot.read_text()), args.plot.with_suffix(".png"))
+        return
     studies = []
     with spawn_emulator(plant=args.plant, seed=1, start_timeout_s=600) as emulator:
         for clock in args.clocks.split(","):
             for busy in (0, args.busy):
                 studies.append(one_study(emulator, clock, busy, args))
                 print(json.dumps({k: v for k, v in studies[-1].items() if k != "strokes"}), flush=True)
+    clocks = args.clocks.split(",")
+    kept = []
+    if args.keep:
+        kept = [s for s in json.loads(args.keep.read_text())["studies"] if s["clock"] not in clocks]
+        studies += kept
+        clocks += sorted({s["clock"] for s in kept})
     comparison = {}
-    for clock in args.clocks.split(","):
+    for clock in clocks:
         quiet, loaded = (next(s for s in studies if s["clock"] == clock and s["busy_processes"] == b)
                          for b in (0, args.busy))
         comparison[clock] = compare(quiet, loaded)
     result = {"command": " ".join(["python", *sys.argv]), "plant": args.plant, "busy": args.busy,
               "iterations": args.iterations, "seed": args.seed, "cpus": os.cpu_count(),
               "machine": platform.machine(),
-              "note": "the machine is shared: other processes add to the busy ones",
+              "note": "the machine is shared: other processes add to the busy ones"
+                      + (f"; the {', '.join(sorted({s['clock'] for s in kept}))} studies are from an "
+                         f"earlier run of this script ({args.keep})" if kept else ""),
               "comparison": comparison, "studies": studies}
     print(json.dumps(comparison, indent=2))
     if args.out:

@@ -52,6 +52,11 @@ LEAD_S = 0.3              # the trajectory starts this long after it is armed
 # stroke that plays on for 2 s after the PC died ends anyway (then the watchdog holds it safe).
 TIMED_WATCHDOG_MS = 2000
 LOG_STALL_S = 10.0         # a log that gives no new sample for this long has stopped
+# The safe position after the run is retried this long unless the URL says safe_timeout_s:
+# no request has a deadline in this mode, and an emulator that fell behind a loaded PC took
+# more than the streaming default of 5 s to answer (the 10th run of a loaded bench study
+# paused on it). Meanwhile the device's watchdog holds the servo.
+TIMED_SAFE_TIMEOUT_S = 30.0
 THRUST, ANGLE, COMMAND = f"{LOADCELL_BLOCK}.thrust_N", "servo.angle_rad", "controller.angle_rad"
 
 
@@ -100,6 +105,7 @@ def stroke_of(scene: Scene, overrides: Mapping[str, Any]) -> tuple[str, np.ndarr
 def _blocks(sc: Scene) -> tuple[Servo, LoadCell]:
     blocks = sc.to_dict()["blocks"]
     sv = {k: v for k, v in blocks["servo"]["parameters"].items() if k != "clock"}
+    sv.setdefault("safe_timeout_s", TIMED_SAFE_TIMEOUT_S)
     lc = {k: v for k, v in blocks[LOADCELL_BLOCK]["parameters"].items() if k != "clock"}
     servo, cell = Servo("servo", **sv), LoadCell(LOADCELL_BLOCK, **lc)
     for b, needs in ((servo, ("clock", "trajectory", "log")), (cell, ("clock", "log"))):
@@ -241,9 +247,11 @@ class _TimedRun:
                                     "detail": f"{lost} samples overwritten before they were read"})
         state = self._guarded("servo", lambda: player_state(self.servo))
         if state is PlayerState.IDLE and self.t_s > 0:
-            # A restart between the session read above and this one also stops the player:
-            # read the session again so the fault names the cause.
+            # A restart between the session reads above and this one also stops the player:
+            # read both sessions again so the fault names the cause (a gateway restarts both
+            # devices; a loaded PC may have read the load cell's session just before).
             self._check_session("servo", self.servo)
+            self._check_session("loadcell", self.cell)
             restarted = any(e["kind"] == "restart" and e["device"] == "servo"
                             for e in self.events)
             raise DeviceFault("servo", "device_error", self.t_s,

@@ -48,7 +48,7 @@ def test_blocks_read_sensible_values_from_a_flapping_feather(make_emulator, lc_m
     try:
         assert abs(cell.get_outputs()["thrust_N"]) < 0.05      # tared at rest
         h, t, t0 = 0.005, 0.0, time.monotonic()
-        thrust, angle = [], []
+        thrust, angle, rate = [], [], []
         while t < 1.0:
             servo.set_inputs({"setpoint_rad": 0.6 * math.sin(2 * math.pi * 1.5 * t)})
             servo.do_step(t, h)
@@ -57,6 +57,7 @@ def test_blocks_read_sensible_values_from_a_flapping_feather(make_emulator, lc_m
             time.sleep(max(0.0, t0 + t - time.monotonic()))
             thrust.append(cell.get_outputs()["thrust_N"])
             angle.append(servo.get_outputs()["angle_rad"])
+            rate.append(servo.get_outputs()["rate_rad_s"])
         # A 12 x 7.5 cm plate flapped at +-0.6 rad, 1.5 Hz: about a newton, both signs. A
         # stalled test process catches up in a burst of steps, which the servo feels as a
         # setpoint step: spikes of several N, so only the bulk is bounded tightly.
@@ -65,7 +66,9 @@ def test_blocks_read_sensible_values_from_a_flapping_feather(make_emulator, lc_m
         assert max(map(abs, thrust)) < 29.4          # never beyond the cell's capacity
         assert 0.3 < max(angle) < 0.65 and -0.65 < min(angle) < -0.3
         assert servo.estimate_source == "readback"
-        assert abs(servo.get_outputs()["rate_rad_s"]) < 7.0
+        # the rate is a difference over read times: two reads of a catching-up burst, close
+        # together, amplify the read-back's quantisation (22 rad/s seen on a loaded PC)
+        assert sorted(map(abs, rate))[int(0.8 * len(rate))] < 7.0
     finally:
         servo.close()
         cell.close()
@@ -138,6 +141,7 @@ def test_close_commands_the_safe_position_when_the_link_is_up(emulator):
     servo.close()        # idempotent
 
 
+@pytest.mark.realtime   # wall-clock bounds with >= 3x margin; pass under two busy processes
 def test_close_never_raises_when_the_link_is_down_and_gives_up_at_its_deadline(make_emulator):
     emu = make_emulator()
     servo = Servo("servo", emu.servo_url, timeout_s=T, safe_timeout_s=0.5)
@@ -164,6 +168,7 @@ def test_lost_emulator_raises_a_fault_naming_device_fault_and_time(make_emulator
     cell.close()
 
 
+@pytest.mark.realtime   # wall-clock bounds with >= 3x margin; pass under two busy processes
 def test_reconnects_when_the_emulator_comes_back_within_reconnect_s(make_emulator):
     emu = make_emulator(seed=2)
     port = emu.port
@@ -194,6 +199,7 @@ def test_reconnects_when_the_emulator_comes_back_within_reconnect_s(make_emulato
             handle.stop()
 
 
+@pytest.mark.realtime   # wall-clock bounds with >= 3x margin; pass under two busy processes
 def test_recovery_is_bounded_by_reconnect_s(make_emulator):
     emu = make_emulator()
     cell = LoadCell("cell", emu.loadcell_url, reconnect_s=0.3, timeout_s=T)
@@ -206,6 +212,7 @@ def test_recovery_is_bounded_by_reconnect_s(make_emulator):
     cell.close()
 
 
+@pytest.mark.realtime   # wall-clock bounds with >= 3x margin; pass under two busy processes
 @pytest.mark.parametrize("fault, expected, kwargs", [
     ("silent", Fault.TIMEOUT, {}),
     ("exception", Fault.EXCEPTION_RESPONSE, {}),
@@ -309,6 +316,7 @@ def test_a_cell_never_stable_for_unstable_s_is_stale(make_emulator, constant_pla
     cell.close()
 
 
+@pytest.mark.realtime   # wall-clock bounds with >= 3x margin; pass under two busy processes
 @pytest.mark.hil
 def test_start_is_patient_but_the_run_keeps_its_step_deadline(make_emulator):
     """A transmitter slow to answer its first requests (here 0.3 s) does not fail the start

@@ -17,7 +17,8 @@ from featherstar.hil.emulated_bench import LAG_LIMIT_S, LOADCELL_UNIT
 from featherstar.hil.plant import FlatPlatePlant
 from pymodbus.client import ModbusTcpClient
 
-pytestmark = pytest.mark.hil
+# Lag is wall-clock behaviour by definition; the limits have margins (pass under two busy processes).
+pytestmark = [pytest.mark.hil, pytest.mark.realtime]
 
 
 class SlowPlant(FlatPlatePlant):
