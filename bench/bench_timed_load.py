@@ -24,6 +24,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from featherstar.cosim.plotstyle import save_figure
 from featherstar.hil.emulator import spawn_emulator
 
 BUSY = [sys.executable, "-c", "while True: pass"]
@@ -112,6 +113,7 @@ def plot(result: dict, path: Path) -> None:
     for ax in (ax1, ax2):
         ax.set_xticks(range(len(cases)), labels)
         ax.set_xlim(-0.5, len(cases) - 0.5)
+        ax.set_xlabel("clock mode and competing load")
     ax1.axhline(0.9, color="k", ls="--", lw=0.8, label="90 % (issue 25)")
     ax1.set_ylabel("valid share of the measured periods")
     ax1.set_ylim(-0.05, 1.05)
@@ -123,7 +125,7 @@ def plot(result: dict, path: Path) -> None:
     ax2.set_ylabel("TR of complete runs")
     fig.suptitle("featherstar run testbed --hardware: streamed vs device-timed, quiet vs loaded")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path)
 
 
 def main() -> None:

@@ -456,6 +456,10 @@ def _bench_case(name: str) -> Callable[[Path], None]:
                    tmp / "w.png")
         elif name == "bench_model_form_calibration":
             m.plot(_json(name)["cases"], tmp / "f.png")
+        elif name == "bench_timed_optimize":
+            m.plot(_json("timed_optimize_load"), tmp / "o.png")
+        elif name == "bench_timed_load":
+            m.plot(_json("timed_vs_streaming_load"), tmp / "l.png")
         elif name == "mixed_coupling":
             m.plot(_json(name), tmp)
         elif name == "_peers_report":
@@ -476,7 +480,7 @@ CASES: dict[str, Callable[[Path], None]] = {
     "bench/bench_calibration.py::plot": _bench_case("bench_calibration"),
     "bench/bench_loop_prior.py::_figure": _bench_case("bench_loop_prior"),
     **{f"bench/{n}.py::plot": _bench_case(n) for n in (
-        "_peers_report", "bench_model_form_calibration", "cosim_work_precision", "drag_convergence", "feather_speed", "flap_mechanisms", "fmu_models",
+        "_peers_report", "bench_model_form_calibration", "bench_timed_load", "bench_timed_optimize", "cosim_work_precision", "drag_convergence", "feather_speed", "flap_mechanisms", "fmu_models",
         "hil_loop_rate", "mixed_coupling", "optimizer_speed", "stability_map", "wake_memory")},
 }
 
