@@ -27,7 +27,7 @@ from pathlib import Path
 from featherstar.cosim.plotstyle import save_figure
 from featherstar.hil.emulator import spawn_emulator
 
-BUSY = [sys.executable, "-c", "while True: pass"]
+from _under_load import busy_processes
 
 
 SETTLE_S = 10.0   # the feather rings for seconds after a run; a tare taken then is wrong
@@ -35,9 +35,7 @@ SETTLE_S = 10.0   # the feather rings for seconds after a run; a tare taken then
 
 def one_run(emulator, clock: str, busy: int, periods: int) -> dict:
     time.sleep(SETTLE_S)
-    hogs = [subprocess.Popen(BUSY) for _ in range(busy)]
-    try:
-        time.sleep(0.5 if busy else 0.0)
+    with busy_processes(busy):
         with tempfile.TemporaryDirectory() as out:
             run = subprocess.run(
                 [sys.executable, "-m", "featherstar", "run", "testbed", "--quiet", "--no-figure",
@@ -48,10 +46,6 @@ def one_run(emulator, clock: str, busy: int, periods: int) -> dict:
                 capture_output=True, text=True, timeout=300)
             summary_path = Path(out) / "summary.json"
             summary = json.loads(summary_path.read_text()) if summary_path.exists() else {}
-    finally:
-        for hog in hogs:
-            hog.kill()
-            hog.wait()
     validity = summary.get("validity") or {}
     used = summary.get("periods_used") or 0
     return {"clock": clock, "busy_processes": busy, "exit": run.returncode,

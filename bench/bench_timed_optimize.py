@@ -26,16 +26,14 @@ from pathlib import Path
 from featherstar.cosim.plotstyle import save_figure
 from featherstar.hil.emulator import spawn_emulator
 
-BUSY = [sys.executable, "-c", "while True: pass"]
+from _under_load import busy_processes
 # Words of optimizer.bench.objective.discard_reasons that say the PC did not keep time.
 TIMING_WORDS = ("late", "deadline", "data gap", "behind real time", "excluded")
 
 
 def one_study(emulator, clock: str, busy: int, args: argparse.Namespace) -> dict:
-    hogs = [subprocess.Popen(BUSY) for _ in range(busy)]
     started = time.monotonic()
-    try:
-        time.sleep(0.5 if busy else 0.0)
+    with busy_processes(busy):
         with tempfile.TemporaryDirectory() as out:
             run = subprocess.run(
                 [sys.executable, "-m", "featherstar", "optimize", "testbed", "--out", out,
@@ -49,10 +47,6 @@ def one_study(emulator, clock: str, busy: int, args: argparse.Namespace) -> dict
                 capture_output=True, text=True, timeout=3600)
             log = Path(out) / "evaluations.jsonl"
             records = [json.loads(x) for x in log.read_text().splitlines()] if log.exists() else []
-    finally:
-        for hog in hogs:
-            hog.kill()
-            hog.wait()
     evaluations = [r for r in records if r["kind"] == "evaluation"]
     discarded = [r for r in records if r["kind"] == "discarded"]
     timing = [r for r in discarded if any(w in "; ".join(r["reasons"]) for w in TIMING_WORDS)]

@@ -23,6 +23,13 @@ TICK_S = 15.0
 _state = {"total": None, "index": 0, "quiet": False}
 
 
+def reset(quiet: bool = False) -> None:
+    """A new command starts: no numbering, and `quiet` as it asked (one line per cold build, when
+    it is done: what was built, how long it took). Called by every command, so that state never
+    leaks from one command to the next run in the same process (the CLI's tests, notebooks)."""
+    _state.update(total=None, index=0, quiet=bool(quiet))
+
+
 def number_builds(total: int | None) -> None:
     """The caller is about to visit `total` FMUs (built cold or found cached): number them."""
     _state.update(total=total or None, index=0)
@@ -31,11 +38,6 @@ def number_builds(total: int | None) -> None:
 def next_block() -> None:
     """The caller moves to its next FMU (counted whether or not it is built cold)."""
     _state["index"] += 1
-
-
-def set_quiet(quiet: bool) -> None:
-    """Quiet: one line per cold build, when it is done (what was built, how long it took)."""
-    _state["quiet"] = bool(quiet)
 
 
 def _position() -> str:

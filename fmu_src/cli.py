@@ -32,7 +32,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
     def run(args: argparse.Namespace) -> int:
         # Imported here: the catalog builds every model's equations, which `--help` should not wait for.
-        from .build_progress import next_block, number_builds, set_quiet
+        from .build_progress import next_block, number_builds
         from .catalog import MODELS
         from .export import build_fmu
 
@@ -41,7 +41,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
             parser.error(f"unknown model(s) {', '.join(unknown)}; known models: {', '.join(MODELS)}")
         names = args.models or list(MODELS)
         number_builds(len(names))
-        set_quiet(args.quiet)
         for name in names:
             next_block()
             try:

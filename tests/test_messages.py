@@ -30,9 +30,9 @@ def slow_build(tmp_path, monkeypatch):
         return path
 
     monkeypatch.setattr(export, "_build", fake_build)
+    build_progress.reset()   # whatever a command before this test left
     yield
-    build_progress.set_quiet(False)
-    build_progress.number_builds(None)
+    build_progress.reset()
 
 
 def test_a_cold_build_says_what_n_of_m_and_how_long(slow_build, capsys):
@@ -49,7 +49,7 @@ def test_a_cold_build_says_what_n_of_m_and_how_long(slow_build, capsys):
 
 
 def test_quiet_keeps_one_line_with_the_duration(slow_build, capsys):
-    build_progress.set_quiet(True)
+    build_progress.reset(quiet=True)
     export.build_fmu(servo_model())
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("featherstar: built FMU servo in 0.")

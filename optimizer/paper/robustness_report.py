@@ -71,6 +71,8 @@ def family_section(data: Mapping, table: list[dict], res: Resolution, timing: Ma
     family_wall_s = sum(r.get("wall_s", 0.0) for member in data.get("family", {}).values()
                         for kind in member.values() for r in kind.values())
     runs = sum(len(kind) for member in data.get("family", {}).values() for kind in member.values())
-    lines += ["", f"The family's {runs} runs took {family_wall_s:.0f} s of the report's {timing['task_wall_s']:.0f} s "
-              "of task time (summed over workers).\n"]
+    # A report drawn from an older paper.json (or a run that failed early) may lack the total.
+    total = (f" of the report's {timing['task_wall_s']:.0f} s of task time (summed over workers)"
+             if "task_wall_s" in timing else "")
+    lines += ["", f"The family's {runs} runs took {family_wall_s:.0f} s{total}.\n"]
     return lines

@@ -13,6 +13,7 @@ import sys
 from dataclasses import dataclass
 from typing import Sequence
 
+from .fmu_src.build_progress import reset as reset_build_progress
 from .fmu_src.errors import FeatherstarError
 from .terminal import EXIT_FOR_SIGNAL, one_line
 
@@ -76,6 +77,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
+    reset_build_progress(quiet=getattr(args, "quiet", False))
     try:
         return int(args.func(args) or 0)
     except FeatherstarError as exc:

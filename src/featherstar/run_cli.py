@@ -88,10 +88,6 @@ def _run_and_report(args: argparse.Namespace, scene, overrides, outputs, stop) -
     from .cosim.errors import StepError
     from .cosim.swimmer.report import summary_table
     from .cosim.swimmer.run import run_scene
-
-    from .fmu_src.build_progress import set_quiet
-
-    set_quiet(args.quiet)
     runner = run_scene
     if args.hardware:   # streamed, or device-timed when the URLs say clock=device
         from .hil.timed_run import run_bench_scene as runner
