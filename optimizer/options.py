@@ -12,12 +12,12 @@ from __future__ import annotations
 import argparse
 import functools
 import math
-import os
 import sys
-import tempfile
 import warnings
 from pathlib import Path
 from typing import Callable, NoReturn
+
+from ..cosim.out_dir import out_dir_problem
 
 
 def count(least: int, what: str = "") -> Callable[[str], int]:
@@ -55,21 +55,10 @@ def number(*, above: float | None = None, at_least: float | None = None) -> Call
 
 def out_dir(text: str) -> Path:
     """An output directory that exists and is writable, or can be created where it is asked for."""
-    path = Path(text)
-    if path.exists() and not path.is_dir():
-        raise argparse.ArgumentTypeError(f"{text!r} is a file, not a directory")
-    parent = path
-    while not parent.exists():
-        if parent.parent == parent:
-            break
-        parent = parent.parent
-    if not parent.is_dir():
-        raise argparse.ArgumentTypeError(f"{text!r} cannot be created: {parent} is not a directory")
-    try:   # what the command will do there, tried and undone (os.access says yes to root on /proc)
-        os.rmdir(tempfile.mkdtemp(prefix=".featherstar-probe-", dir=parent))
-    except OSError as exc:
-        raise argparse.ArgumentTypeError(f"{text!r} is not writable ({parent}: {exc.strerror or exc})") from None
-    return path
+    problem = out_dir_problem(Path(text))
+    if problem:
+        raise argparse.ArgumentTypeError(f"{text!r} {problem}")
+    return Path(text)
 
 
 def one_line_errors(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:

@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import logging
 import sys
-import tempfile
 from pathlib import Path
 from typing import Sequence
 
@@ -26,12 +25,14 @@ def _check_out_dir(out: Path) -> None:
     """Refuse an --out that cannot be written before the run, not after it, and clear an earlier
     run's outputs there: a run refused or failed from here on leaves no stale summary behind."""
     from .cosim.errors import SceneError
+    from .cosim.out_dir import out_dir_problem
     from .cosim.swimmer.report import clear_outputs
 
+    problem = out_dir_problem(out)
+    if problem:
+        raise SceneError(f"--out {out}: cannot write there (it {problem})")
     try:
         out.mkdir(parents=True, exist_ok=True)
-        with tempfile.NamedTemporaryFile(dir=out, prefix=".featherstar-write-test"):
-            pass
         clear_outputs(out)
     except OSError as exc:
         raise SceneError(f"--out {out}: cannot write there ({exc.strerror or exc})") from None
