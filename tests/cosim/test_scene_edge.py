@@ -4,9 +4,7 @@ shipped scenes' TOML (types replaced, values out of range, tables replaced by sc
 keys, non-UTF-8 bytes)."""
 from __future__ import annotations
 
-import datetime
 import json
-import math
 import tomllib
 from typing import Any
 
@@ -20,50 +18,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from featherstar.terminal import one_line
+from tomlgen import to_toml
 
 SHIPPED = {name: tomllib.loads(path.read_text()) for name, path in sorted(shipped_scenes().items())}
-
-
-# --- a TOML writer for the mutated scenes (tomllib reads only) ---------------------------------
-
-def _string(text: str) -> str:
-    # a TOML basic string: JSON's escapes, astral characters and DEL written as themselves / \u
-    return json.dumps(text, ensure_ascii=False).replace("\x7f", "\\u007f")
-
-
-def _key(k: str) -> str:
-    return _string(k)
-
-
-def _value(v: Any) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, float):
-        return "nan" if math.isnan(v) else ("inf" if v > 0 else "-inf") if math.isinf(v) else repr(v)
-    if isinstance(v, int):
-        return str(v)
-    if isinstance(v, str):
-        return _string(v)
-    if isinstance(v, (datetime.date, datetime.time)):
-        return v.isoformat()
-    if isinstance(v, list):
-        return "[" + ", ".join(_value(x) for x in v) + "]"
-    return "{" + ", ".join(f"{_key(k)} = {_value(x)}" for k, x in v.items()) + "}"
-
-
-def to_toml(data: dict[str, Any]) -> str:
-    lines = [f"{_key(k)} = {_value(v)}" for k, v in data.items() if not isinstance(v, dict)]
-    for k, v in data.items():
-        if not isinstance(v, dict):
-            continue
-        if k == "blocks" and all(isinstance(b, dict) for b in v.values()) and v:
-            for name, table in v.items():
-                lines.append(f"[{_key('blocks')}.{_key(name)}]")
-                lines += [f"{_key(kk)} = {_value(x)}" for kk, x in table.items()]
-        else:
-            lines.append(f"[{_key(k)}]")
-            lines += [f"{_key(kk)} = {_value(x)}" for kk, x in v.items()]
-    return "\n".join(lines) + "\n"
 
 
 def test_the_writer_round_trips_the_shipped_scenes():

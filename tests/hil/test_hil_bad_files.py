@@ -17,6 +17,7 @@ from featherstar.hil.emulator import Emulator
 from featherstar.hil.errors import HILConfigError, HILError
 from featherstar.hil.plant import flat_plate_plant, read_plant_parameters
 from featherstar.hil.registers import LoadCellMap, available_maps, load_map
+from tomlgen import to_toml
 
 SHIPPED = {name: (resources.files("featherstar.hil") / "maps" / f"{name}.toml").read_text("utf-8")
            for name in available_maps()}
@@ -28,27 +29,6 @@ scalars = st.one_of(st.integers(-2**40, 2**40), st.floats(allow_nan=True, allow_
                         ["float32", "int32", "CDAB", "deg", "kg", "holding", "input", "servo",
                          "loadcell", 0, 1, 65535, 65536, -1]))
 values = st.one_of(scalars, st.lists(scalars, max_size=3))
-
-
-def _toml_value(v) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, float):
-        return "nan" if math.isnan(v) else ("inf" if v > 0 else "-inf") if math.isinf(v) else repr(v)
-    if isinstance(v, int):
-        return str(v)
-    if isinstance(v, str):
-        return json.dumps(v)
-    return "[" + ", ".join(_toml_value(x) for x in v) + "]"
-
-
-def _toml(doc: dict) -> str:
-    lines = [f"{k} = {_toml_value(v)}" for k, v in doc.items() if not isinstance(v, dict)]
-    for name, table in doc.items():
-        if isinstance(table, dict):
-            lines.append(f"[{name}]")
-            lines += [f"{k} = {_toml_value(v)}" for k, v in table.items()]
-    return "\n".join(lines) + "\n"
 
 
 @st.composite
@@ -66,7 +46,7 @@ def mutated_maps(draw) -> str:
             doc[table][draw(st.sampled_from(["adress", "bit", "scale", "lag_bit", "x"]))] = draw(values)
         elif action == "drop-table" and len(doc) > 1:
             del doc[table]
-    return _toml(doc)
+    return to_toml(doc)
 
 
 def _loads_or_refuses(path: Path) -> None:
