@@ -38,7 +38,8 @@ def main() -> None:
     parser.add_argument("--plant", choices=("fmu", "flat-plate"), default="fmu")
     parser.add_argument("--seconds", type=float, default=20.0)
     parser.add_argument("--settle-s", type=float, default=3.0)
-    parser.add_argument("--out", type=Path)
+    parser.add_argument("--out", type=Path, metavar="DIR",
+                        help="write emulator_idle_cpu.json here (default: print only)")
     args = parser.parse_args()
     result = measure(args.plant, args.seconds, args.settle_s)
     result.update(machine=platform.machine(), cpus=os.cpu_count(),
@@ -47,7 +48,8 @@ def main() -> None:
                           f"--seconds {args.seconds:g}")
     print(json.dumps(result, indent=2))
     if args.out:
-        args.out.write_text(json.dumps(result, indent=2) + "\n")
+        args.out.mkdir(parents=True, exist_ok=True)
+        (args.out / "emulator_idle_cpu.json").write_text(json.dumps(result, indent=2) + "\n")
 
 
 if __name__ == "__main__":

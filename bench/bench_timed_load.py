@@ -128,7 +128,8 @@ def main() -> None:
     parser.add_argument("--busy", type=int, default=2)
     parser.add_argument("--repeats", type=int, default=2)
     parser.add_argument("--periods", type=int, default=4)
-    parser.add_argument("--out", type=Path, help="JSON; the PNG next to it")
+    parser.add_argument("--out", type=Path, metavar="DIR",
+                        help="write timed_vs_streaming_load.json and .png here (default: print only)")
     parser.add_argument("--plot", type=Path, metavar="JSON", help="only draw the PNG of a result")
     args = parser.parse_args()
     if args.plot:
@@ -148,8 +149,9 @@ def main() -> None:
               "summary": table, "runs": runs}
     print(json.dumps(table, indent=2))
     if args.out:
-        args.out.write_text(json.dumps(result, indent=2) + "\n")
-        plot(result, args.out.with_suffix(".png"))
+        args.out.mkdir(parents=True, exist_ok=True)
+        (args.out / "timed_vs_streaming_load.json").write_text(json.dumps(result, indent=2) + "\n")
+        plot(result, args.out / "timed_vs_streaming_load.png")
 
 
 if __name__ == "__main__":

@@ -139,7 +139,8 @@ def main() -> None:
     parser.add_argument("--clocks", default="device,pc")
     parser.add_argument("--keep", type=Path, metavar="JSON",
                         help="take the studies of the other clocks from this earlier result")
-    parser.add_argument("--out", type=Path)
+    parser.add_argument("--out", type=Path, metavar="DIR",
+                        help="write timed_optimize_load.json and .png here (default: print only)")
     parser.add_argument("--plot", type=Path, metavar="JSON", help="only draw the PNG of a result")
     args = parser.parse_args()
     if args.plot:
@@ -171,8 +172,9 @@ def main() -> None:
               "comparison": comparison, "studies": studies}
     print(json.dumps(comparison, indent=2))
     if args.out:
-        args.out.write_text(json.dumps(result, indent=2) + "\n")
-        plot(result, args.out.with_suffix(".png"))
+        args.out.mkdir(parents=True, exist_ok=True)
+        (args.out / "timed_optimize_load.json").write_text(json.dumps(result, indent=2) + "\n")
+        plot(result, args.out / "timed_optimize_load.png")
 
 
 if __name__ == "__main__":

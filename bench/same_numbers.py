@@ -28,13 +28,14 @@ def measure(periods: int = 6) -> dict[str, dict[str, str]]:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, help="write the numbers as JSON here (default: print only)")
+    parser.add_argument("--out", type=Path, metavar="DIR", help="write same_numbers.json here (default: print only)")
     args = parser.parse_args(argv)
     numbers = measure()
     text = json.dumps(numbers, indent=2, sort_keys=True)
     print(text)
     if args.out:
-        args.out.write_text(text + "\n", encoding="utf-8")
+        args.out.mkdir(parents=True, exist_ok=True)
+        (args.out / "same_numbers.json").write_text(text + "\n", encoding="utf-8")
     return 0
 
 

@@ -1,6 +1,7 @@
 """Locating the bench/ scripts of a checkout and running them as processes, two at a time."""
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 import time
@@ -55,18 +56,41 @@ PLANS: dict[str, Plan] = {
     "optimizer_speed.py": Plan(("--seeds", "1", "--iterations", "8"), expected_s=60),
     "me_weak_accuracy.py": Plan((), expected_s=30),
     "mixed_coupling.py": Plan(("--quick",), expected_s=25),
+    "same_numbers.py": Plan((), expected_s=20),
+    # a CPU-share measurement of the idle emulator: nothing else may run meanwhile
+    "bench_emulator_idle.py": Plan(("--seconds", "10"), full_args=(), alone=True, expected_s=20),
     # minutes each even when reduced, or real time on the emulator: full runs only
     "flap_mechanisms.py": Plan(None, expected_s=240),
+    "drag_convergence.py": Plan(None, expected_s=240),
+    "wake_feathers.py": Plan(None, expected_s=200),
+    # they start busy processes themselves and measure real time: alone
+    "bench_timed_load.py": Plan(None, alone=True, expected_s=300),
+    "bench_timed_optimize.py": Plan(None, alone=True, expected_s=1500),
     "wake_memory.py": Plan(None, expected_s=600),   # its own --quick takes ~7 min
     "bench_loop_prior.py": Plan(None, expected_s=300),
     "bench_calibration.py": Plan(None, expected_s=300),
 }
 
 
+def plan_of(script: Path) -> Plan:
+    """How `script` is run: its entry in PLANS, else `--quick` in quick mode when the script has
+    that option and full mode only when it has not (a plan never passes an option the script
+    lacks; tests/stress/test_bench_command.py checks the entries)."""
+    if script.name in PLANS:
+        return PLANS[script.name]
+    return Plan() if defines_option(script, "--quick") else Plan(None)
+
+
+def defines_option(script: Path, option: str) -> bool:
+    """Whether the script's source names `option` as a string (how argparse options are declared;
+    read, not run: a script is not started to find out)."""
+    source = script.read_text(encoding="utf-8", errors="replace")
+    return re.search(rf"""['"]{re.escape(option)}['"]""", source) is not None
+
+
 def full_run_only(bench: Path | None) -> list[str]:
     """The checkout's scripts that `--quick` leaves out."""
-    return [s.name for s in (bench_scripts(bench) if bench is not None else [])
-            if PLANS.get(s.name, Plan()).quick_args is None]
+    return [s.name for s in (bench_scripts(bench) if bench is not None else []) if plan_of(s).quick_args is None]
 MEASURE_EXPECTED_S = 90.0
 
 
@@ -87,7 +111,7 @@ class Task:
 def scripts_without_out(bench: Path) -> list[str]:
     """Benchmark scripts with no --out option: the dashboard would have them write elsewhere
     (into the checkout's committed docs/results), so it refuses to start while there are any."""
-    return [s.name for s in bench_scripts(bench) if '"--out"' not in s.read_text(encoding="utf-8", errors="replace")]
+    return [s.name for s in bench_scripts(bench) if not defines_option(s, "--out")]
 
 
 def make_tasks(bench: Path | None, out: Path, quick: bool, measure: bool = True) -> list[Task]:
@@ -95,14 +119,14 @@ def make_tasks(bench: Path | None, out: Path, quick: bool, measure: bool = True)
     tasks = []
     logs = out / "logs"
     scheduled = [s for s in (bench_scripts(bench) if bench is not None else [])
-                 if not (quick and PLANS.get(s.name, Plan()).quick_args is None)]
-    without_out = set(scripts_without_out(bench)) if bench is not None else set()
-    missing = [s.name for s in scheduled if s.name in without_out]
+                 if not (quick and plan_of(s).quick_args is None)]
+    # every script, not only those this mode runs: the other mode would write outside --out
+    missing = scripts_without_out(bench) if bench is not None else []
     if missing:
         raise BenchError(f"{', '.join(missing)}: no --out option; every benchmark script must write where "
                          "the dashboard says (nothing outside --out)")
     for script in scheduled:
-        plan = PLANS.get(script.name, Plan())
+        plan = plan_of(script)
         args = list(plan.quick_args if quick else plan.full_args)
         args += ["--out", str(out)]
         tasks.append(Task(script.stem, [sys.executable, str(script), *args], logs / f"{script.stem}.log",

@@ -71,13 +71,17 @@ def test_quick_leaves_out_full_run_only_scripts_and_says_so(tmp_path, monkeypatc
     bench = checkout / "bench"
     bench.mkdir(parents=True)
     (checkout / "pyproject.toml").write_text("[project]\nname = 'x'\n")
-    (bench / "slow.py").write_text("raise SystemExit('a full-run-only script must not run in --quick')\n")
+    full_only = "raise SystemExit('a full-run-only script must not run in --quick')\n"
+    # slow.py has no --quick (so, without a plan, it runs in full mode only); planned.py's plan says so
+    (bench / "slow.py").write_text("import argparse; p = argparse.ArgumentParser(); p.add_argument(\"--out\"); "
+                                   "p.parse_args()\n" + full_only)
+    (bench / "planned.py").write_text(ARGS + full_only)
     (bench / "fast.py").write_text(ARGS)
-    monkeypatch.setitem(runner.PLANS, "slow.py", runner.Plan(None))
+    monkeypatch.setitem(runner.PLANS, "planned.py", runner.Plan(None))
     monkeypatch.chdir(checkout)
     report = run_dashboard(quick=True, out=tmp_path / "out", measure=False, log=lambda msg: None)
     assert set(report["benches"]) == {"fast"}
-    assert report["full_run_only"] == ["slow.py"]
+    assert report["full_run_only"] == ["planned.py", "slow.py"]
     md = (tmp_path / "out" / "dashboard.md").read_text()
     assert "| slow | not run: full runs only (`python bench/slow.py`)" in md
 
@@ -102,3 +106,21 @@ def test_every_benchmark_of_this_checkout_takes_out():
     from featherstar.dashboard.runner import scripts_without_out
 
     assert scripts_without_out(Path(__file__).resolve().parents[2] / "bench") == []
+
+
+def test_every_plan_passes_only_options_its_script_has():
+    """`featherstar bench` passes each script its plan's arguments and `--out DIR`: an option the
+    script does not define fails it in a second (six scripts once did, with --quick)."""
+    import re
+    from pathlib import Path
+
+    from featherstar.dashboard.runner import bench_scripts, defines_option, plan_of
+
+    for script in bench_scripts(Path(__file__).resolve().parents[2] / "bench"):
+        plan, source = plan_of(script), script.read_text(encoding="utf-8")
+        for args in (plan.quick_args or (), plan.full_args, ("--out",)):
+            for option in (a for a in args if a.startswith("--")):
+                assert defines_option(script, option), f"{script.name}: its plan passes {option}, which it does not define"
+        # --out names a directory: the script writes its own file names in it (never `--out FILE`)
+        assert not re.search(r"args\.out\.(write_text|write_bytes|with_suffix|open)\(", source), \
+            f"{script.name}: --out is used as a file; the dashboard passes a directory"
