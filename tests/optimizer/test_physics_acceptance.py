@@ -79,8 +79,8 @@ def plain_best(studies):
     "the next stroke. With the feather's wake option (laws fitted to oscillatory and steady plate data) the "
     "slow-return stroke's TR falls from 1.30 to 0.98-1.02 (bench/wake_feathers.py), the law undecided by those "
     "data (docs/model.md, 'Wake memory' and 'What the model does not reproduce'). Across the model family "
-    "(featherstar paper's claims table, re-optimized under each member; --quick budgets) the plain optimum's TR "
-    "is 1.04-1.05 under every wake law, 1.01 with the steady drag law and 1.29-1.30 under the added-mass range: "
+    "(featherstar paper's claims table, re-optimized under each member, full budgets: docs/paper-report) the plain "
+    "optimum's TR is 1.03-1.11 under the wake laws, 1.05 with the steady drag law and 1.13-1.43 under the added-mass range: "
     "the claim is undecided by the model, a bench decides it (docs/model.md, 'Which claims the model family decides')",
 )
 def test_plain_feather_gains_no_asymmetry_from_the_optimizer(plain_best):
