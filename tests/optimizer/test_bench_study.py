@@ -69,7 +69,8 @@ def _records(out):
 
 
 @pytest.mark.realtime
-def test_a_stalled_streamed_run_is_discarded_and_repeated_and_the_study_completes(tmp_path, keeps_time):
+def test_a_stalled_streamed_run_is_discarded_and_repeated_and_the_study_completes(tmp_path, keeps_time,
+                                                                                   skip_if_time_was_lost):
     emulator = spawn_emulator(plant="flat-plate", noise_N=0.002, seed=1)
     stalled = []
 
@@ -93,8 +94,11 @@ def test_a_stalled_streamed_run_is_discarded_and_repeated_and_the_study_complete
     assert summary["measured"] is True and summary["discarded_runs"] == len(discarded)
     assert summary["iterations"] == ITERATIONS
     assert {r["controller"] for r in records if r["kind"] == "validation"} == {"best", "baseline"}
+    # Beyond the stall, a run kept with a few late steps still measured a distorted stroke: then the
+    # ranking below says nothing about the study.
+    skip_if_time_was_lost(reasons=[reason for r in discarded[1:] for reason in r["reasons"]])
     # A slow upstroke with a fast downstroke beats the symmetric stroke on a drag plate.
-    assert summary["thrust_ratio"] > summary["baseline_thrust_ratio"] - 0.05
+    assert summary["thrust_ratio"] > summary["baseline_thrust_ratio"] - 0.05, summary
     assert (tmp_path / "fig6_progress.png").stat().st_size > 0 and (tmp_path / "fig8_validation.png").exists()
 
 
