@@ -33,12 +33,21 @@ TIMING_WORDS = ("late", "deadline", "behind real time", "lag")
 @pytest.fixture
 def skip_if_time_was_lost():
     """A real-time test's second gate: `keeps_time` is measured before the run, load that comes
-    during it shows in the run's own summary. Called with a summary (a run's, or a bench study's
-    records' reasons), it skips with the measured reasons when periods were excluded, or runs
-    discarded, because time was lost; a gap or reconnect is not timing and is left to the test."""
+    during it shows in the run's own summary. Called with a summary (a run's) or with reasons (a
+    bench study's discarded runs), it skips with the measured reasons when the run broke the
+    master's own timing limits (featherstar.cosim.swimmer.validity: a step later than MAX_LATE_S,
+    more than MAX_MISS_FRACTION of the steps late), had periods excluded for time, or its device's
+    plant fell behind real time. A gap or a reconnect is not timing and is left to the test."""
+    from featherstar.cosim.swimmer.validity import MAX_LATE_S, MAX_MISS_FRACTION
+
     def check(summary: dict | None = None, reasons: list[str] | None = None) -> None:
         found = list(reasons or [])
         if summary is not None:
+            steps = max(int((summary.get("stats") or {}).get("macro_steps", 0) or 0), 1)
+            if summary.get("worst_lateness_s", 0.0) > MAX_LATE_S:
+                found.append(f"a step started {summary['worst_lateness_s']:.3f} s late (limit {MAX_LATE_S} s)")
+            if summary.get("deadline_misses", 0) > MAX_MISS_FRACTION * steps:
+                found.append(f"{summary['deadline_misses']} of {steps} steps missed their deadline")
             for period in (summary.get("validity") or {}).get("invalid_periods", []):
                 found += period.get("reasons", [])
             if summary.get("lags"):

@@ -227,11 +227,8 @@ def test_the_testbed_streams_over_rtu_when_the_machine_keeps_time(make_emulator,
     stats = result.summary["stats"]
     thrust = result["loadcell_hw.thrust_N"]
     assert len(thrust) == stats["macro_steps"] + 1 and np.all(np.isfinite(thrust))
-    if stats["deadline_misses"] >= 0.2 * stats["macro_steps"]:
-        # keeps_time is measured before the run; load that comes during it shows here
-        pytest.skip(f"the machine did not keep time during the run: {stats['deadline_misses']} "
-                    f"of {stats['macro_steps']} steps missed their deadline")
-    skip_if_time_was_lost(result.summary)     # a period excluded for a late step or a lagging plant
+    # keeps_time is measured before the run; load that comes during it shows in the run's summary
+    skip_if_time_was_lost(result.summary)
     assert result.complete and math.isfinite(result.summary["thrust_ratio"])
 
 

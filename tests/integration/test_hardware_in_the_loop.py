@@ -72,11 +72,10 @@ def test_testbed_with_hardware_matches_the_simulation(clock, request):
         emulator.stop()
     hardware = result.summary
     assert hardware["coupling"] == ("device-timed" if clock == "device" else "gauss-seidel")
-    steps = (hardware.get("stats") or {}).get("macro_steps", 0)   # streamed runs only
-    if clock == "pc" and hardware["deadline_misses"] >= 0.2 * steps:
-        # keeps_time was measured before the run; the load may have come during it
-        pytest.skip(f"the machine did not keep time during the streamed run: "
-                    f"{hardware['deadline_misses']} of {steps} steps missed their deadline")
+    if clock == "pc":
+        # keeps_time was measured before the run; load that came during it shows in the run (a swing
+        # 23 % low passed the TR check with a step 0.08 s late, under two busy processes)
+        request.getfixturevalue("skip_if_time_was_lost")(hardware)
     # Stated tolerance: the hardware loop runs at 250 Hz with zero-order-hold setpoints, a Modbus
     # round trip of lag and 4 ms samples of a signal with ~100 Hz chain modes; a few mN of offset
     # moves the plain feather's TR (thrust swings ±0.5 N around a mean of a few mN) by ~0.1 each.
