@@ -82,7 +82,7 @@ class LoadCell(ModbusDevice):
         self.outputs: Mapping[str, Port] = {
             "thrust_N": Port("thrust_N", "N", "tared load-cell reading, positive up"),
             "t_read_s": Port("t_read_s", "s", "run time at which the reading was taken, on the "
-                                              "PC's clock (the first step's read on time)")}
+                                              "PC's clock (its most punctual read so far on time)")}
         self._session, self._plan = _session_and_read_plan(self.map, self.map.value.spans())
         self.status = Status()
         self._thrust_N = math.nan
@@ -100,7 +100,7 @@ class LoadCell(ModbusDevice):
                 self.tare(t0_s)
             self._last_change_mono = self._last_stable_mono = time.monotonic()
             self._guard(t0_s, self._sample)
-        self._mono_at_t0, self._t_read_s = None, t0_s   # anchored at the first paced step
+        self._mono_at_t0, self._t_read_s = None, t0_s   # anchored by the paced steps (do_step)
 
     def _on_reconnect(self, t_s: float) -> None:
         self._note(t_s, "reconnect", f"new connection to {self.link.where}: the transmitter may "
@@ -117,8 +117,13 @@ class LoadCell(ModbusDevice):
     def do_step(self, t_s: float, h_s: float) -> None:
         self._check_started()
         self._guard(t_s + h_s, self._sample)
-        if self._mono_at_t0 is None:   # the paced clock starts here: this read is on time
-            self._mono_at_t0 = self._read_mono - (t_s + h_s)
+        # Run time 0 on the PC's clock, from the most punctual read so far: a paced step never
+        # starts early, so the read least behind its step's time is the one on time. (Anchored on
+        # the first read alone, a first read 11 ms late under load stamped every later sample 11 ms
+        # early, and the record ended short of the run.)
+        offset_s = self._read_mono - (t_s + h_s)
+        if self._mono_at_t0 is None or offset_s < self._mono_at_t0:
+            self._mono_at_t0 = offset_s
         self._t_read_s = self._read_mono - self._mono_at_t0
         self._note_lag(t_s + h_s, self.status)
         # A transmitter that restarted has lost its tare, and the feather moves: no new one.

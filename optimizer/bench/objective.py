@@ -10,7 +10,9 @@ close left it), then runs settling plus measured periods in real time through th
   time (an emulator's status lag bit), or
 - the master excluded a period of the measured window or called the run incomplete, or
 - the measured window has no negative thrust (TR infinite: the load cell tares at the start of
-  every run, so a feather still moving from the last run offsets the whole recording).
+  every run, so a feather still moving from the last run offsets the whole recording), or
+- its samples do not span the run (a streamed run stamps each sample with the PC's clock at the
+  read: a PC that lost time can end the record short of the last period's end).
 
 This is stricter than `featherstar run`, which keeps a run with half its periods valid: the
 optimizer compares evaluations with each other, so every one must be measured over the same
@@ -22,6 +24,8 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping
+
+import numpy as np
 
 from ...cosim.swimmer.validity import MAX_LATE_S, MAX_MISS_FRACTION
 from ..objective import RUN_LENGTH_OVERRIDE, Overrides, Trace
@@ -71,6 +75,18 @@ def discard_reasons(run: BenchRun) -> list[str]:
     return reasons
 
 
+def coverage_reasons(time_s: np.ndarray, duration_s: float) -> list[str]:
+    """Why samples stamped at `time_s` (s) cannot measure a run of `duration_s` (empty: they can).
+    The metrics need whole periods; a record may end up to one of its own sample intervals short
+    (a device's clock samples on its own grid), not more."""
+    span_s = float(time_s[-1] - time_s[0]) if len(time_s) else 0.0
+    interval_s = float(np.median(np.diff(time_s))) if len(time_s) > 2 else 0.0
+    if span_s < duration_s - interval_s - 1e-9:
+        return [f"the samples span {span_s:.3f} s of the {duration_s:.3f} s run (their read times fell "
+                "short: the PC ran late)"]
+    return []
+
+
 @dataclass(frozen=True)
 class BenchObjective:
     """One attempt of a stroke on the bench (the `Objective` protocol); raises DiscardedRun."""
@@ -86,7 +102,7 @@ class BenchObjective:
         started = time.perf_counter()
         run = run_on_bench(self.scene, self.hardware, {
             **self.overrides, **overrides, RUN_LENGTH_OVERRIDE: duration_s, SETTLE_OVERRIDE: self.settle_periods})
-        reasons = discard_reasons(run)
+        reasons = discard_reasons(run) + coverage_reasons(run.time_s, duration_s)
         if reasons:
             raise DiscardedRun(reasons, run.summary)
         return Trace(run.time_s, run.thrust_N, time.perf_counter() - started)

@@ -358,3 +358,29 @@ def test_a_recovered_fault_and_a_new_connection_are_events(make_emulator):
         assert reconnect["tare_unknown"] is True and reconnect["t_s"] == pytest.approx(0.004)
     finally:
         cell.close()
+
+
+@pytest.mark.parametrize("late_reads", [(0,), (0, 1), (3,), ()])
+def test_read_times_are_anchored_on_the_most_punctual_read(emulator, monkeypatch, late_reads):
+    # The PC's clock is the test's: step k's read comes at its step's end, 10 ms * (k + 1), except
+    # those made 11 ms late; a read after a late one comes no earlier than 0.1 ms after it.
+    # Anchored on the first read, a late first read stamped every later sample 11 ms early, and a
+    # streamed record ended short of its run (a bench study stopped on it under load).
+    cell = LoadCell("cell", emulator.loadcell_url, timeout_s=T)
+    cell.start(0.0)
+    origin_s, h_s, late_s = time.monotonic(), 0.01, 0.011
+    stamps, read_at = [], origin_s
+    try:
+        for k in range(6):
+            read_at = max(read_at + 1e-4, origin_s + (k + 1) * h_s + (late_s if k in late_reads else 0.0))
+            monkeypatch.setattr("featherstar.hil.blocks.time.monotonic", lambda: read_at)
+            cell.do_step(k * h_s, h_s)
+            stamps.append(cell.get_outputs()["t_read_s"])
+    finally:
+        monkeypatch.undo()
+        cell.close()
+    on_time = [k for k in range(6) if k > max(late_reads, default=-1) + 1]   # caught up by then
+    for k in on_time:      # every read after the first punctual one: stamped at its step's time
+        assert stamps[k] == pytest.approx((k + 1) * h_s, abs=1e-9)
+    assert stamps[-1] >= 6 * h_s - 1e-9     # the record reaches the end of the run
+    assert all(b > a for a, b in zip(stamps, stamps[1:]))
