@@ -44,6 +44,16 @@ def _fit(text: str) -> tuple[str, tuple[float, float] | None]:
         raise argparse.ArgumentTypeError(f"--fit wants NAME or NAME=LOW,HIGH (e.g. drag_coeff=0.5,3), got {text!r}") from None
 
 
+def _periods(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"wants a whole number of stroke periods, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"wants at least 1 stroke period, got {value}")
+    return value
+
+
 def register_calibrate(subparsers: argparse._SubParsersAction, override_type) -> None:
     cal = subparsers.add_parser(
         "calibrate", help="fit and compare feather model forms (wake laws) and coefficients on recorded load-cell runs",
@@ -77,8 +87,12 @@ def register_calibrate(subparsers: argparse._SubParsersAction, override_type) ->
                           "force over the interval before it (interval-mean: an integrating load cell, such as "
                           "the emulator's; then it is compared at the interval's middle)")
     cal.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
-    cal.add_argument("--window-s", type=number(above=0.0), default=None, metavar="S",
-                     help="fit the first S seconds of each run (default: one stroke period, from summary.json)")
+    window = cal.add_mutually_exclusive_group()
+    window.add_argument("--window-s", type=number(above=0.0), default=None, metavar="S",
+                        help="fit the first S seconds of each run (default: one stroke period, from summary.json)")
+    window.add_argument("--periods", type=_periods, default=None, metavar="N",
+                        help="fit the first N stroke periods of each run (period from summary.json; default 1). "
+                             "One period from rest does not tell the wake laws apart; see --recipe")
     cal.add_argument("--time-column", default=None)
     cal.add_argument("--angle-column", default=None)
     cal.add_argument("--thrust-column", default=None)
@@ -138,7 +152,7 @@ def _calibrate_command(args: argparse.Namespace) -> int:
           f"(each: a fit on all runs, then one per run left out) ...", flush=True)
     try:
         fits, choice, refused = calibrate_forms(recordings, args.scene, overrides, forms, fit,
-                                                window_s=args.window_s, progress=progress,
+                                                window_s=args.window_s, periods=args.periods, progress=progress,
                                                 thrust_samples=args.thrust_samples)
     finally:
         if progress is not None:

@@ -185,23 +185,37 @@ def choose(fits: Sequence[FormFit]) -> FormChoice:
     return FormChoice(chosen.form, names, reason)
 
 
+def fit_window_s(recordings: Sequence[Recording], window_s: float | None = None, periods: int | None = None) -> float:
+    """The fit window: `window_s`, else `periods` (default 1) stroke periods of the runs (their
+    summary.json's period, which must be one). Several periods tell the wake laws apart where one
+    does not (DISCRIMINATING_DESIGN); the plain feather is not chaotic, so they can be matched
+    sample by sample (a flapped feather's later periods may not be: fit.py)."""
+    if window_s is not None and periods is not None:
+        raise OptimizerError("--window-s and --periods both set the fit window: give one")
+    if periods is not None and not (isinstance(periods, int) and periods >= 1):
+        raise OptimizerError(f"--periods {periods} must be a whole number of stroke periods, at least 1")
+    if window_s is None:
+        known = {r.period_s for r in recordings}
+        if None in known or len(known) != 1:
+            raise OptimizerError("the stroke period of the runs is unknown (no summary.json beside them) or not "
+                                 "one: give --window-s, e.g. the stroke period times the periods to fit")
+        window_s = known.pop() * (1 if periods is None else periods)
+    if not (math.isfinite(window_s) and window_s > 0):
+        raise OptimizerError(f"--window-s {window_s} must be a positive number of seconds")
+    return float(window_s)
+
+
 def calibrate_forms(recordings: Sequence[Recording], scene: str, overrides: Mapping[str, Any],
                     forms: Sequence[str] = FORMS, fit: Mapping[str, tuple[float, float] | None] | None = None, *,
-                    window_s: float | None = None,
+                    window_s: float | None = None, periods: int | None = None,
                     progress: Callable[[str, str, int], None] | None = None, thrust_samples: str = "instant"
                     ) -> tuple[list[FormFit], FormChoice, list[dict[str, str]]]:
-    """(each form's fit, the choice, the refused recordings) for these recordings."""
+    """(each form's fit, the choice, the refused recordings) for these recordings; the fit window
+    is `window_s`, or `periods` stroke periods of the runs (default one: `fit_window_s`)."""
     unknown = [f for f in forms if f not in FORMS]
     if unknown or not forms:
         raise OptimizerError(f"--forms {','.join(forms)}: valid forms are {', '.join(FORMS)}")
-    if window_s is None:
-        periods = {r.period_s for r in recordings}
-        if None in periods or len(periods) != 1:
-            raise OptimizerError("the stroke period of the runs is unknown (no summary.json beside them): give "
-                                 "--window-s, e.g. the stroke period")
-        window_s = periods.pop()
-    if not (math.isfinite(window_s) and window_s > 0):
-        raise OptimizerError(f"--window-s {window_s} must be a positive number of seconds")
+    window_s = fit_window_s(recordings, window_s, periods)
     kept, refused = usable_recordings(recordings, window_s)
     if kept:
         check_same_stroke(kept, window_s)
