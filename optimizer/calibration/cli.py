@@ -23,7 +23,8 @@ from ..log import dumps
 from ..options import command, number, one_line_errors, out_dir
 from ..postprocess import optional
 from .fit import BIN_S, DEFAULT_COEFFICIENTS, THRUST_SAMPLES, Calibration, feather_block
-from .forms import BIC_DECISIVE, FORMS, TIE_SIGMAS, FormChoice, FormFit, calibrate_forms, evidence_table
+from .forms import (BIC_DECISIVE, FORMS, TIE_SIGMAS, FormChoice, FormFit, calibrate_forms, evidence_table,
+                    recipe)
 from .identify import MAX_CORRELATION, MAX_RELATIVE_SD
 from .recordings import read_recording
 
@@ -67,7 +68,10 @@ def register_calibrate(subparsers: argparse._SubParsersAction, override_type) ->
                     f"Exit status {NOT_A_CALIBRATION} (and no set.txt) when the form is undecided or the chosen "
                     "form has a coefficient the runs do not identify.")
     one_line_errors(cal)
-    cal.add_argument("runs", nargs="+", type=Path, metavar="RUN", help="run directory or CSV (repeatable)")
+    cal.add_argument("runs", nargs="*", type=Path, metavar="RUN", help="run directory or CSV (repeatable; at least one)")
+    cal.add_argument("--recipe", action="store_true",
+                     help="print the commands that record runs telling the wake laws apart (a stroke and a number "
+                          "of periods, chosen by bench/model_form_design.py) and calibrate them; nothing is fitted")
     cal.add_argument("--scene", default="testbed", help="scene whose feather block is calibrated (default testbed)")
     cal.add_argument("--set", dest="overrides", metavar="KEY=VALUE", type=override_type, action="extend", nargs="+",
                      default=[], help="scene overrides, one or more per --set, e.g. feather.morphology=spanwise "
@@ -137,6 +141,13 @@ def _forms(args: argparse.Namespace, overrides: dict) -> tuple[str, ...]:
 
 
 def _calibrate_command(args: argparse.Namespace) -> int:
+    if args.recipe:
+        if args.runs:
+            raise OptimizerError("--recipe prints how to record runs and fits nothing: give it without RUN")
+        print("\n".join(recipe(args.scene)))
+        return 0
+    if not args.runs:
+        raise OptimizerError("calibrate needs at least one RUN (a run directory or CSV), or --recipe")
     recordings = [read_recording(path, time_column=args.time_column, angle_column=args.angle_column,
                                  thrust_column=args.thrust_column) for path in args.runs]
     overrides = dict(args.overrides)

@@ -47,6 +47,16 @@ TIE_SIGMAS = 2.0
 BIC_DECISIVE = 6.0
 #: The drag coefficient of each kind of form (a --fit of one names the form's own).
 DRAG_NAMES = ("drag_coeff", "wake_drag_coeff")
+#: The recording that tells the wake laws apart (`featherstar calibrate --recipe`): chosen by
+#: bench/model_form_design.py (docs/results/model_form_design.json) for the plain feather on the
+#: testbed, as the stroke of the 4-phase family, and number of periods fitted from rest, whose
+#: hardest pair of wake laws is furthest apart relative to the load cell's noise (noise-free
+#: recordings of each law, every other law fitted to them). One period of the testbed's
+#: symmetric stroke leaves relative, self and plate within noise of each other.
+DISCRIMINATING_STROKE = {"controller.period_s": 1.0, "controller.amplitude_deg": 150.0, "controller.log10_up_down": 0.6,
+                         "controller.log10_hold_up_down": 0.0, "controller.log10_hold_move": -0.3}
+DISCRIMINATING_PERIODS = 3
+DISCRIMINATING_MORPHOLOGY = "plain"
 
 
 @dataclass(frozen=True)
@@ -176,9 +186,11 @@ def choose(fits: Sequence[FormFit]) -> FormChoice:
             reason = (f"held-out RMS within noise of each other for {', '.join(names)}; BIC tie-break: "
                       f"{chosen.form} lower by {margin:.1f} (>= {BIC_DECISIVE:g})")
         else:
+            hint = ("; recordings of the stroke `featherstar calibrate --recipe` prints tell the wake laws apart"
+                    if sum(f.form != "none" for f in tied) > 1 else "")
             return FormChoice(None, names, f"held-out RMS within noise of each other for {', '.join(names)} "
                                            f"and BIC within {BIC_DECISIVE:g} ({margin:.1f}): the recordings do "
-                                           "not decide the model form", "undecided")
+                                           f"not decide the model form{hint}", "undecided")
     if chosen.unidentified:
         return FormChoice(chosen.form, names, reason + f"; but the recordings do not identify "
                           f"{', '.join(chosen.unidentified)}", "not identified")
@@ -229,6 +241,21 @@ def calibrate_forms(recordings: Sequence[Recording], scene: str, overrides: Mapp
                              f"{len(kept)} left{' (refused: ' + why + ')' if why else ''}")
     fits = [fit_form(form, kept, scene, overrides, fit, window_s, progress, thrust_samples) for form in forms]
     return fits, choose(fits), refused
+
+
+def recipe(scene: str = "testbed") -> list[str]:
+    """The commands that record and calibrate the discriminating design (DISCRIMINATING_STROKE
+    over DISCRIMINATING_PERIODS periods, recorded 0.2 s longer, three runs each from rest)."""
+    period_s = DISCRIMINATING_STROKE["controller.period_s"]
+    record_s = DISCRIMINATING_PERIODS * period_s + 0.2
+    stroke = " ".join(f"{k}={v:g}" for k, v in DISCRIMINATING_STROKE.items())
+    return [f"# the stroke that tells the wake laws apart (measured for the {DISCRIMINATING_MORPHOLOGY} feather: "
+            "bench/model_form_design.py, docs/bench-loop.md); three runs, each from rest:",
+            *(f"featherstar run {scene} --hardware servo=URL --hardware loadcell=URL --set feather.morphology="
+              f"{DISCRIMINATING_MORPHOLOGY} {stroke} master.t_end_s={record_s:g} metrics.settle_periods=0 "
+              f"--out runs/r{k}" for k in (1, 2, 3)),
+            f"featherstar calibrate runs/r1 runs/r2 runs/r3 --scene {scene} --set feather.morphology="
+            f"{DISCRIMINATING_MORPHOLOGY} --periods {DISCRIMINATING_PERIODS} --out runs/cal"]
 
 
 def evidence_table(fits: Sequence[FormFit]) -> list[str]:
