@@ -1,6 +1,7 @@
 """Model-form calibration against the emulator's plant: is the true wake law picked, and its coefficients recovered?
 
     python bench/bench_model_form_calibration.py [--quick] [--seeds 5] [--out docs/results] [--skip-realtime]
+        [--stroke symmetric|asymmetric] [--periods N] [--design NAME]
 
 For each true law (none / relative / self / plate) and seed: the emulator's plant (the FMU plant,
 featherstar.hil.fmu_plant.FmuPlant, with that `wake` build option, as `featherstar emulate
@@ -21,8 +22,11 @@ prediction of it (unless --skip-realtime).
 
 The feather is the plain one (no hinge, so two coefficients per form: drag and added mass;
 its fits are the cheapest). `--quick`: one seed, the laws none and plate, two forms each.
-Writes bench_model_form_calibration.json (after every case, so a partial run keeps its cases)
-and .png into --out.
+`--periods N`: record N stroke periods (+ 0.2 s) and fit all N (the fit window; default 1).
+`--design NAME`: the stroke and periods of one of bench/model_form_design.py's DESIGNS (that
+script chooses the design that tells the wake laws apart, before this bench runs).
+Writes bench_model_form_calibration[_STROKE][_Nperiods].json (after every case, so a partial
+run keeps its cases) and .png into --out.
 """
 from __future__ import annotations
 
@@ -42,6 +46,7 @@ import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_calibration import _offline_run, _urls  # noqa: E402
+from model_form_design import DESIGNS  # noqa: E402
 from featherstar.cosim.plotstyle import save_figure  # noqa: E402
 from featherstar.fmu_src.fluid import WAKE_CONSTANTS  # noqa: E402
 from featherstar.hil.emulator import spawn_emulator  # noqa: E402
@@ -51,7 +56,9 @@ from featherstar.optimizer.calibration.fit import predict  # noqa: E402
 from featherstar.optimizer.calibration.forms import FORMS, calibrate_forms  # noqa: E402
 from featherstar.optimizer.calibration.recordings import Recording  # noqa: E402
 
-MORPHOLOGY, PERIOD_S, WINDOW_S, RECORD_S, RUNS = "plain", 1.0, 1.0, 1.2, 3
+MORPHOLOGY, PERIOD_S, RUNS = "plain", 1.0, 3
+# the fit window and the recordings' length (set by --periods: N periods, + 0.2 s)
+DESIGN = {"window_s": 1.0, "record_s": 1.2}
 SCENE, OVERRIDES = "testbed", {"feather.morphology": MORPHOLOGY}
 # Hidden coefficients per seed, uniform in: the quasi-steady constant drag around the
 # oscillating plate's (steady 1.2, oscillatory KC drag above it), a wake law's C_0 within 25 % of
@@ -80,7 +87,7 @@ def hidden(law: str, seed: int) -> dict[str, float]:
 def recordings(law: str, seed: int, truth: dict) -> list[Recording]:
     runs = []
     for k in range(RUNS):
-        run = _offline_run(MORPHOLOGY, {**STROKE, "master.t_end_s": RECORD_S, "metrics.settle_periods": 0}, truth,
+        run = _offline_run(MORPHOLOGY, {**STROKE, "master.t_end_s": DESIGN["record_s"], "metrics.settle_periods": 0}, truth,
                            100 * seed + k, {"wake": law})
         runs.append(Recording(f"{law}-s{seed}-run{k}", run["time_s"], run["angle_rad"], run["thrust_N"],
                               ("s", "rad", "N"), PERIOD_S))
@@ -98,7 +105,7 @@ def case(law: str, seed: int, forms: tuple[str, ...]) -> dict:
             print(f"    {time.perf_counter() - started:6.0f} s  {form}: {stage}", flush=True)
             last[0] = (form, stage)
 
-    fits, choice, _ = calibrate_forms(runs, SCENE, OVERRIDES, forms, window_s=WINDOW_S, progress=progress,
+    fits, choice, _ = calibrate_forms(runs, SCENE, OVERRIDES, forms, window_s=DESIGN["window_s"], progress=progress,
                                       thrust_samples=THRUST_SAMPLES)
     by_form = {f.form: f for f in fits}
     true_fit = by_form.get(law)
@@ -123,7 +130,7 @@ def realtime_check(seed: int = 0, law: str = "plate") -> dict:
                               plant_parameters={"feather.wake": law, **{f"feather.{k}": v for k, v in truth.items()}})
     try:
         run = run_on_bench(SCENE, _urls(emulator), {**OVERRIDES, **STROKE, "controller.period_s": PERIOD_S,
-                                                     "master.step_s": 0.005, "master.t_end_s": RECORD_S,
+                                                     "master.step_s": 0.005, "master.t_end_s": DESIGN["record_s"],
                                                      "metrics.settle_periods": 0})
     except BenchFault as exc:
         return {"error": f"bench fault: {exc}"}
@@ -132,8 +139,8 @@ def realtime_check(seed: int = 0, law: str = "plate") -> dict:
     live = Recording("realtime", run.time_s, run.angle_rad, run.thrust_N, ("s", "rad", "N"), PERIOD_S)
     offline = recordings(law, seed, truth)[0]
     form = {**OVERRIDES, "feather.wake": law}
-    measured_live, predicted = predict(live, SCENE, form, truth, WINDOW_S, THRUST_SAMPLES)
-    measured_offline, _ = predict(offline, SCENE, form, truth, WINDOW_S, THRUST_SAMPLES)
+    measured_live, predicted = predict(live, SCENE, form, truth, DESIGN["window_s"], THRUST_SAMPLES)
+    measured_offline, _ = predict(offline, SCENE, form, truth, DESIGN["window_s"], THRUST_SAMPLES)
     n = min(len(measured_live), len(measured_offline))
     return {"law": law, "seed": seed, "discard_reasons": discard_reasons(run),
             "rms_realtime_minus_offline_N": float(np.sqrt(np.mean((measured_live[:n] - measured_offline[:n]) ** 2))),
@@ -179,6 +186,12 @@ def main() -> None:
     p.add_argument("--laws", default=",".join(FORMS), help="true laws, comma-separated (default: all)")
     p.add_argument("--stroke", choices=sorted(STROKES), default="symmetric",
                    help="stroke of the recordings (default: %(default)s; asymmetric: fast down, slow return)")
+    p.add_argument("--periods", type=int, default=1,
+                   help="stroke periods recorded and fitted (default: %(default)s; bench/model_form_design.py "
+                        "chooses the design)")
+    p.add_argument("--design", choices=sorted(DESIGNS), default=None,
+                   help="stroke and periods of a bench/model_form_design.py design (instead of --stroke and "
+                        "--periods)")
     p.add_argument("--skip-realtime", action="store_true", help="skip the one real-time emulator recording")
     p.add_argument("--out", type=Path, default=Path("docs/results"), help="where the JSON and PNG go")
     p.add_argument("--part", default=None, metavar="NAME",
@@ -193,21 +206,31 @@ def main() -> None:
             {"machine": {"load_average": list(os.getloadavg())}, "cases": [], "realtime_check": check}, indent=2) + "\n")
         print(check)
         return
+    if args.periods < 1:
+        p.error(f"--periods {args.periods}: at least 1")
+    if args.design is not None:
+        STROKES[args.design] = DESIGNS[args.design][0]
+        args.stroke, args.periods = args.design, DESIGNS[args.design][1]
+        stem = f"bench_model_form_calibration_{args.design}"
+    else:
+        stem = ("bench_model_form_calibration" + ("" if args.stroke == "symmetric" else f"_{args.stroke}")
+                + ("" if args.periods == 1 else f"_{args.periods}periods"))
     if args.merge:
-        merge(args.out, "bench_model_form_calibration" + ("" if args.stroke == "symmetric" else f"_{args.stroke}"))
+        merge(args.out, stem)
         return
     STROKE.update(STROKES[args.stroke])
+    DESIGN.update(window_s=args.periods * PERIOD_S, record_s=args.periods * PERIOD_S + 0.2)
     laws = ("none", "plate") if args.quick else tuple(args.laws.split(","))
     forms = ("none", "plate") if args.quick else FORMS
     seeds = 1 if args.quick else args.seeds
     args.out.mkdir(parents=True, exist_ok=True)
-    stem = "bench_model_form_calibration" + ("" if args.stroke == "symmetric" else f"_{args.stroke}")
     path = args.out / (f"{stem}_part-{args.part}.json" if args.part else f"{stem}{'_quick' if args.quick else ''}.json")
     started = time.perf_counter()
     results = {"machine": {"platform": platform.platform(), "cpus": os.cpu_count(),
                            "load_average_at_start": list(os.getloadavg())},
                "setup": {"morphology": MORPHOLOGY, "stroke": {"name": args.stroke, "overrides": STROKE, "period_s": PERIOD_S},
-                         "recordings_per_case": RUNS, "window_s": WINDOW_S, "hidden_ranges": HIDDEN_RANGES,
+                         "recordings_per_case": RUNS, "periods": args.periods, "window_s": DESIGN["window_s"],
+                         "record_s": DESIGN["record_s"], "hidden_ranges": HIDDEN_RANGES,
                          "forms": list(forms), "thrust_samples": THRUST_SAMPLES, "recordings": "the emulator's FMU plant stepped in simulated time "
                          "as the bench client drives it (bench_calibration._offline_run)"},
                "cases": []}

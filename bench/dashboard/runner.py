@@ -69,6 +69,7 @@ PLANS: dict[str, Plan] = {
     "wake_memory.py": Plan(None, expected_s=600),   # its own --quick takes ~7 min
     "bench_loop_prior.py": Plan(None, expected_s=300),
     "bench_calibration.py": Plan(None, expected_s=300),
+    "model_form_design.py": Plan(None, expected_s=900),   # 9 fits per design, 5 designs
 }
 
 

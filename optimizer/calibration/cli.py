@@ -23,7 +23,8 @@ from ..log import dumps
 from ..options import command, number, one_line_errors, out_dir
 from ..postprocess import optional
 from .fit import BIN_S, DEFAULT_COEFFICIENTS, THRUST_SAMPLES, Calibration, feather_block
-from .forms import BIC_DECISIVE, FORMS, TIE_SIGMAS, FormChoice, FormFit, calibrate_forms, evidence_table
+from .forms import (BIC_DECISIVE, FORMS, TIE_SIGMAS, FormChoice, FormFit, calibrate_forms, evidence_table,
+                    recipe)
 from .identify import MAX_CORRELATION, MAX_RELATIVE_SD
 from .recordings import read_recording
 
@@ -44,6 +45,16 @@ def _fit(text: str) -> tuple[str, tuple[float, float] | None]:
         raise argparse.ArgumentTypeError(f"--fit wants NAME or NAME=LOW,HIGH (e.g. drag_coeff=0.5,3), got {text!r}") from None
 
 
+def _periods(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"wants a whole number of stroke periods, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"wants at least 1 stroke period, got {value}")
+    return value
+
+
 def register_calibrate(subparsers: argparse._SubParsersAction, override_type) -> None:
     cal = subparsers.add_parser(
         "calibrate", help="fit and compare feather model forms (wake laws) and coefficients on recorded load-cell runs",
@@ -57,7 +68,10 @@ def register_calibrate(subparsers: argparse._SubParsersAction, override_type) ->
                     f"Exit status {NOT_A_CALIBRATION} (and no set.txt) when the form is undecided or the chosen "
                     "form has a coefficient the runs do not identify.")
     one_line_errors(cal)
-    cal.add_argument("runs", nargs="+", type=Path, metavar="RUN", help="run directory or CSV (repeatable)")
+    cal.add_argument("runs", nargs="*", type=Path, metavar="RUN", help="run directory or CSV (repeatable; at least one)")
+    cal.add_argument("--recipe", action="store_true",
+                     help="print the commands that record runs telling the wake laws apart (a stroke and a number "
+                          "of periods, chosen by bench/model_form_design.py) and calibrate them; nothing is fitted")
     cal.add_argument("--scene", default="testbed", help="scene whose feather block is calibrated (default testbed)")
     cal.add_argument("--set", dest="overrides", metavar="KEY=VALUE", type=override_type, action="extend", nargs="+",
                      default=[], help="scene overrides, one or more per --set, e.g. feather.morphology=spanwise "
@@ -77,8 +91,12 @@ def register_calibrate(subparsers: argparse._SubParsersAction, override_type) ->
                           "force over the interval before it (interval-mean: an integrating load cell, such as "
                           "the emulator's; then it is compared at the interval's middle)")
     cal.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
-    cal.add_argument("--window-s", type=number(above=0.0), default=None, metavar="S",
-                     help="fit the first S seconds of each run (default: one stroke period, from summary.json)")
+    window = cal.add_mutually_exclusive_group()
+    window.add_argument("--window-s", type=number(above=0.0), default=None, metavar="S",
+                        help="fit the first S seconds of each run (default: one stroke period, from summary.json)")
+    window.add_argument("--periods", type=_periods, default=None, metavar="N",
+                        help="fit the first N stroke periods of each run (period from summary.json; default 1). "
+                             "One period from rest does not tell the wake laws apart; see --recipe")
     cal.add_argument("--time-column", default=None)
     cal.add_argument("--angle-column", default=None)
     cal.add_argument("--thrust-column", default=None)
@@ -123,6 +141,13 @@ def _forms(args: argparse.Namespace, overrides: dict) -> tuple[str, ...]:
 
 
 def _calibrate_command(args: argparse.Namespace) -> int:
+    if args.recipe:
+        if args.runs:
+            raise OptimizerError("--recipe prints how to record runs and fits nothing: give it without RUN")
+        print("\n".join(recipe(args.scene)))
+        return 0
+    if not args.runs:
+        raise OptimizerError("calibrate needs at least one RUN (a run directory or CSV), or --recipe")
     recordings = [read_recording(path, time_column=args.time_column, angle_column=args.angle_column,
                                  thrust_column=args.thrust_column) for path in args.runs]
     overrides = dict(args.overrides)
@@ -138,7 +163,7 @@ def _calibrate_command(args: argparse.Namespace) -> int:
           f"(each: a fit on all runs, then one per run left out) ...", flush=True)
     try:
         fits, choice, refused = calibrate_forms(recordings, args.scene, overrides, forms, fit,
-                                                window_s=args.window_s, progress=progress,
+                                                window_s=args.window_s, periods=args.periods, progress=progress,
                                                 thrust_samples=args.thrust_samples)
     finally:
         if progress is not None:

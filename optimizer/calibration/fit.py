@@ -13,7 +13,9 @@ stroke, added mass ∝ acceleration at the stroke's ends, the hinge spring sets 
 the flap folds and unfolds. The flapped feathers are chaotic over many periods (a tiny change
 moves the fold timing of later periods), but the first period from rest is deterministic and
 repeatable on the bench, so it can be matched sample by sample; windowed metrics are what a
-calibration is *checked* against (a fourth, unseen stroke's TR and mean thrust).
+calibration is *checked* against (a fourth, unseen stroke's TR and mean thrust). The plain
+feather (no flaps) is not chaotic: several periods from rest match sample by sample too, and
+they are what tells the wake laws apart (`--periods`, featherstar.optimizer.calibration.forms).
 
 Start: the residual is not smooth in every coefficient. The hinge stiffness sets when the flaps
 fold and hit their stops, so the misfit has a narrow valley around the true value (measured on

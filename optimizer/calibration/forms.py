@@ -47,6 +47,16 @@ TIE_SIGMAS = 2.0
 BIC_DECISIVE = 6.0
 #: The drag coefficient of each kind of form (a --fit of one names the form's own).
 DRAG_NAMES = ("drag_coeff", "wake_drag_coeff")
+#: The recording that tells the wake laws apart (`featherstar calibrate --recipe`): chosen by
+#: bench/model_form_design.py (docs/results/model_form_design.json) for the plain feather on the
+#: testbed, as the stroke of the 4-phase family, and number of periods fitted from rest, whose
+#: hardest pair of wake laws is furthest apart relative to the load cell's noise (noise-free
+#: recordings of each law, every other law fitted to them). One period of the testbed's
+#: symmetric stroke leaves relative, self and plate within noise of each other.
+DISCRIMINATING_STROKE = {"controller.period_s": 1.0, "controller.amplitude_deg": 150.0, "controller.log10_up_down": 0.6,
+                         "controller.log10_hold_up_down": 0.0, "controller.log10_hold_move": -0.3}
+DISCRIMINATING_PERIODS = 3
+DISCRIMINATING_MORPHOLOGY = "plain"
 
 
 @dataclass(frozen=True)
@@ -176,32 +186,48 @@ def choose(fits: Sequence[FormFit]) -> FormChoice:
             reason = (f"held-out RMS within noise of each other for {', '.join(names)}; BIC tie-break: "
                       f"{chosen.form} lower by {margin:.1f} (>= {BIC_DECISIVE:g})")
         else:
+            hint = ("; recordings of the stroke `featherstar calibrate --recipe` prints tell the wake laws apart"
+                    if sum(f.form != "none" for f in tied) > 1 else "")
             return FormChoice(None, names, f"held-out RMS within noise of each other for {', '.join(names)} "
                                            f"and BIC within {BIC_DECISIVE:g} ({margin:.1f}): the recordings do "
-                                           "not decide the model form", "undecided")
+                                           f"not decide the model form{hint}", "undecided")
     if chosen.unidentified:
         return FormChoice(chosen.form, names, reason + f"; but the recordings do not identify "
                           f"{', '.join(chosen.unidentified)}", "not identified")
     return FormChoice(chosen.form, names, reason)
 
 
+def fit_window_s(recordings: Sequence[Recording], window_s: float | None = None, periods: int | None = None) -> float:
+    """The fit window: `window_s`, else `periods` (default 1) stroke periods of the runs (their
+    summary.json's period, which must be one). Several periods tell the wake laws apart where one
+    does not (DISCRIMINATING_DESIGN); the plain feather is not chaotic, so they can be matched
+    sample by sample (a flapped feather's later periods may not be: fit.py)."""
+    if window_s is not None and periods is not None:
+        raise OptimizerError("--window-s and --periods both set the fit window: give one")
+    if periods is not None and not (isinstance(periods, int) and periods >= 1):
+        raise OptimizerError(f"--periods {periods} must be a whole number of stroke periods, at least 1")
+    if window_s is None:
+        known = {r.period_s for r in recordings}
+        if None in known or len(known) != 1:
+            raise OptimizerError("the stroke period of the runs is unknown (no summary.json beside them) or not "
+                                 "one: give --window-s, e.g. the stroke period times the periods to fit")
+        window_s = known.pop() * (1 if periods is None else periods)
+    if not (math.isfinite(window_s) and window_s > 0):
+        raise OptimizerError(f"--window-s {window_s} must be a positive number of seconds")
+    return float(window_s)
+
+
 def calibrate_forms(recordings: Sequence[Recording], scene: str, overrides: Mapping[str, Any],
                     forms: Sequence[str] = FORMS, fit: Mapping[str, tuple[float, float] | None] | None = None, *,
-                    window_s: float | None = None,
+                    window_s: float | None = None, periods: int | None = None,
                     progress: Callable[[str, str, int], None] | None = None, thrust_samples: str = "instant"
                     ) -> tuple[list[FormFit], FormChoice, list[dict[str, str]]]:
-    """(each form's fit, the choice, the refused recordings) for these recordings."""
+    """(each form's fit, the choice, the refused recordings) for these recordings; the fit window
+    is `window_s`, or `periods` stroke periods of the runs (default one: `fit_window_s`)."""
     unknown = [f for f in forms if f not in FORMS]
     if unknown or not forms:
         raise OptimizerError(f"--forms {','.join(forms)}: valid forms are {', '.join(FORMS)}")
-    if window_s is None:
-        periods = {r.period_s for r in recordings}
-        if None in periods or len(periods) != 1:
-            raise OptimizerError("the stroke period of the runs is unknown (no summary.json beside them): give "
-                                 "--window-s, e.g. the stroke period")
-        window_s = periods.pop()
-    if not (math.isfinite(window_s) and window_s > 0):
-        raise OptimizerError(f"--window-s {window_s} must be a positive number of seconds")
+    window_s = fit_window_s(recordings, window_s, periods)
     kept, refused = usable_recordings(recordings, window_s)
     if kept:
         check_same_stroke(kept, window_s)
@@ -215,6 +241,21 @@ def calibrate_forms(recordings: Sequence[Recording], scene: str, overrides: Mapp
                              f"{len(kept)} left{' (refused: ' + why + ')' if why else ''}")
     fits = [fit_form(form, kept, scene, overrides, fit, window_s, progress, thrust_samples) for form in forms]
     return fits, choose(fits), refused
+
+
+def recipe(scene: str = "testbed") -> list[str]:
+    """The commands that record and calibrate the discriminating design (DISCRIMINATING_STROKE
+    over DISCRIMINATING_PERIODS periods, recorded 0.2 s longer, three runs each from rest)."""
+    period_s = DISCRIMINATING_STROKE["controller.period_s"]
+    record_s = DISCRIMINATING_PERIODS * period_s + 0.2
+    stroke = " ".join(f"{k}={v:g}" for k, v in DISCRIMINATING_STROKE.items())
+    return [f"# the stroke that tells the wake laws apart (measured for the {DISCRIMINATING_MORPHOLOGY} feather: "
+            "bench/model_form_design.py, docs/bench-loop.md); three runs, each from rest:",
+            *(f"featherstar run {scene} --hardware servo=URL --hardware loadcell=URL --set feather.morphology="
+              f"{DISCRIMINATING_MORPHOLOGY} {stroke} master.t_end_s={record_s:g} metrics.settle_periods=0 "
+              f"--out runs/r{k}" for k in (1, 2, 3)),
+            f"featherstar calibrate runs/r1 runs/r2 runs/r3 --scene {scene} --set feather.morphology="
+            f"{DISCRIMINATING_MORPHOLOGY} --periods {DISCRIMINATING_PERIODS} --out runs/cal"]
 
 
 def evidence_table(fits: Sequence[FormFit]) -> list[str]:

@@ -10,11 +10,14 @@ import json
 import math
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from featherstar.cosim.swimmer.run import run_scene
 from featherstar.optimizer.calibration.fit import Calibration, Coefficient, measured_thrust_N
-from featherstar.optimizer.calibration.forms import BIC_DECISIVE, TIE_SIGMAS, FormFit, choose, usable_recordings
+from featherstar.optimizer.calibration.forms import (BIC_DECISIVE, TIE_SIGMAS, FormFit, choose, fit_window_s,
+                                                     usable_recordings)
+from featherstar.optimizer.errors import OptimizerError
 from featherstar.optimizer.calibration.identify import unidentified
 from featherstar.optimizer.calibration.recordings import Recording
 from featherstar.optimizer.cli import main as optimizer_main
@@ -99,6 +102,34 @@ def test_incomplete_and_short_recordings_are_refused_and_named():
     assert [r.source for r in kept] == ["ok"]
     assert refused[0] == {"run": "stopped", "reason": "incomplete run (servo: lag)"}
     assert refused[1]["run"] == "short" and "shorter than the fit window" in refused[1]["reason"]
+
+
+def test_the_fit_window_is_seconds_or_whole_stroke_periods():
+    t = np.linspace(0, 3.2, 641)
+    runs = [Recording(f"r{k}", t, np.sin(t), np.cos(t), ("s", "rad", "N"), 1.5) for k in range(2)]
+    assert fit_window_s(runs) == 1.5 and fit_window_s(runs, periods=2) == 3.0 and fit_window_s(runs, 0.7) == 0.7
+    for kwargs, message in [({"window_s": 1.0, "periods": 2}, "give one"), ({"periods": 0}, "at least 1"),
+                            ({"window_s": float("nan")}, "positive number")]:
+        with pytest.raises(OptimizerError, match=message):
+            fit_window_s(runs, **kwargs)
+    unknown = [Recording("u", t, np.sin(t), np.cos(t), ("s", "rad", "N"), None)]
+    with pytest.raises(OptimizerError, match="give --window-s"):
+        fit_window_s(unknown, periods=3)
+    # three periods of a 1.5 s stroke: a 3.2 s run is too short, and is refused by name
+    kept, refused = usable_recordings(runs, fit_window_s(runs, periods=3))
+    assert not kept and "shorter than the fit window (4.5 s)" in refused[0]["reason"]
+
+
+def test_periods_and_window_are_refused_together_in_one_line(tmp_path, capsys):
+    run = tmp_path / "a.csv"
+    run.write_text("time [s],angle [rad],thrust [N]\n" + "\n".join(f"{k * 0.01},0,0" for k in range(120)) + "\n")
+    for argv, message in [(["--periods", "2", "--window-s", "1"], "not allowed with argument"),
+                          (["--periods", "0"], "at least 1 stroke period"), (["--periods", "1.5"], "whole number")]:
+        with pytest.raises(SystemExit) as exit_:
+            optimizer_main(["calibrate", str(run), str(run), "--out", str(tmp_path / "o"), *argv])
+        assert exit_.value.code == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and message in err, err
 
 
 def _write_runs(tmp_path, n, *, complete=None):
