@@ -354,7 +354,9 @@ class DiscrepancyOptimizer:
     def describe(self) -> dict:
         return {"rho": self.rho, "bench_points": self.n_told, "noise_floor_sd": self.noise_floor_sd,
                 "simulated_points": self.simulation.n_points,
-                "delta_kernel": None if self._delta is None else str(self._delta.kernel_)}
+                "delta_kernel": None if self._delta is None else str(self._delta.kernel_),
+                # the kernel prints its white noise as 0 (skopt moves it to noise_ after the fit)
+                "delta_noise_sd": None if self._delta is None else noise_sd(self._delta)}
 
     def _candidates(self, rng: np.random.Generator, X: np.ndarray) -> np.ndarray:
         """Uniform over the feasible space, plus local clouds around the best-mean bench points and

@@ -247,6 +247,7 @@ def test_the_bench_s_noise_floor_reaches_the_model_and_the_log(tmp_path):
     header = json.loads((tmp_path / "d" / "evaluations.jsonl").read_text().splitlines()[0])
     assert json.dumps(0.025) in json.dumps(header)
     assert summary["prior"]["model"]["noise_floor_sd"] == 0.025
+    assert summary["prior"]["model"]["delta_noise_sd"] >= 0.025 * (1 - 1e-6)
     with pytest.raises(OptimizerError, match="noise_floor_sd applies to prior_use='discrepancy'"):
         run_bench_study(bench, SPACE, tmp_path / "s", plan=PLAN, iterations=2, prior=synthetic_prior(tmp_path),
                         noise_floor_sd=0.025)
