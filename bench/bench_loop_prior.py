@@ -194,15 +194,14 @@ def measure_repeatability(out: Path, configs: list[tuple[float, int]]) -> None:
     and the per-period settling curve, each on a fresh emulator; writes bench_loop_repeatability.json."""
     logging.getLogger("hil").setLevel(logging.ERROR)
     result = {"stroke": REPEATABILITY_STROKE, "others": REPEATABILITY_OTHERS, "configs": [], "settling_curve": None}
-    for rest_s, settle in [*configs, None]:
+    for config in [*configs, None]:   # None: the settling curve
         emulator = spawn_emulator(plant="fmu", morphology="plain", noise_N=0.005, seed=7, plant_parameters=HIDDEN,
                                   start_timeout_s=300.0)
         try:
-            if rest_s is None:
+            if config is None:
                 result["settling_curve"] = settling_curve(emulator, REPEATABILITY_STROKE, REPEATABILITY_OTHERS, REST_S)
             else:
-                result["configs"].append(repeatability(emulator, REPEATABILITY_STROKE, REPEATABILITY_OTHERS,
-                                                       rest_s, settle))
+                result["configs"].append(repeatability(emulator, REPEATABILITY_STROKE, REPEATABILITY_OTHERS, *config))
         finally:
             emulator.stop()
     out.mkdir(parents=True, exist_ok=True)
