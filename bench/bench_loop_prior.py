@@ -1,6 +1,7 @@
 """Does the simulation help a bench study when it is structurally wrong? No prior, seeded prior, discrepancy prior.
 
     python bench/bench_loop_prior.py [--quick] [--seeds 5] [--iterations 10] [--out docs/results]
+    python bench/bench_loop_prior.py --repeatability [REST_S:SETTLE ...]   # the bench's repeatability only
 
 1. The simulation: a simulated study of the plain feather (testbed scene, default coefficients,
    quasi-steady drag: wake `none`, strong coupling), `--sim-iterations` evaluations. It is the
@@ -10,20 +11,29 @@
    coefficient 8.0 instead of its fitted 6.65, joint damping 0.003 N·m·s/rad where the model has
    none): a bench whose physics differ from the simulation's in model form and coefficients. Device-timed (`&clock=device` on both URLs), so
    the machine's load does not discard runs.
-3. For each seed, three bench studies of `iterations` evaluations: no prior (random initial
+3. The bench's repeatability, once, before the studies: the simulation's best stroke measured
+   after two other strokes, twice each (`repeatability`). Its sd is the discrepancy arm's noise
+   floor (`noise_floor_sd`): a property of the bench, not fitted per study.
+4. For each seed, three bench studies of `iterations` evaluations: no prior (random initial
    design), `--prior-use seed` (the simulated study's best strokes as initial design),
    `--prior-use discrepancy` (surrogate = ρ · simulation + GP discrepancy).
-4. Iterations to reach 95 % of the bench optimum: the first evaluation whose measured TR is at
+5. Iterations to reach 95 % of the bench optimum: the first evaluation whose measured TR is at
    least 95 % of the best TR measured by any study of this bench (all arms, all seeds; the bench
    optimum is not known otherwise); a study that never gets there counts as budget + 1 (listed as
    `null`). Targets (issue 26): discrepancy mean ≤ half the no-prior mean, and on no seed more than
    one iteration worse than no prior.
 
-Each run rests the feather REST_S first. Without the joint damping, the undamped feather rings
-between runs and the same stroke measured TR 1.07, 0.82, 0.33 in a row with 1 s of rest, and
-1.09, 1.12, 0.95, 0.96 with 6 s (the tare taken in the ringing); with it and 3 s, two strokes
-alternated measured 1.079, 1.004, 1.071, 1.002 (measured before this bench, one run each). Writes bench_loop_prior.json and
-bench_loop_prior.png (best TR so far per study, one panel per arm).
+Each run rests the feather REST_S (3 s), then runs SETTLE_PERIODS (6) periods of the new stroke
+before its MEASURED_PERIODS (2). Why settling and not rest (`--repeatability`,
+docs/results/bench_loop_repeatability.json): the plate wake remembers the previous stroke, and
+at rest it hardly decays (its decay law scales with the plate's speed). With 1 settling period
+one stroke measured TR 1.14 and 1.13 after one stroke, 1.08 and 1.06 after another (sd 0.034
+over five runs), unchanged with 10 s of rest instead of 3 (sd 0.032); per period from the
+stroke's start, the two predecessors' curves differ by 0.08 in the first period and by ~0.015
+from the seventh; with 6 settling periods the sd is 0.011 (the studies' stroke). The joint
+damping is there because without it the undamped feather rings between runs: the same stroke
+measured TR 1.07, 0.82, 0.33 in a row with 1 s of rest (the tare taken in the ringing). Writes
+bench_loop_prior.json and bench_loop_prior.png (best TR so far per study, one panel per arm).
 """
 from __future__ import annotations
 
@@ -49,7 +59,7 @@ from featherstar.optimizer.bench.objective import BenchObjective  # noqa: E402
 from featherstar.optimizer.bench.run import BenchFault  # noqa: E402
 from featherstar.optimizer.bench.sim_prior import SimPrior, study_morphology  # noqa: E402
 from featherstar.optimizer.bench.study import run_bench_study  # noqa: E402
-from featherstar.optimizer.evaluation import MeasurementPlan  # noqa: E402
+from featherstar.optimizer.evaluation import ITERATION_STREAM, MeasurementPlan, evaluate, validate  # noqa: E402
 from featherstar.optimizer.loadcell import LoadCell  # noqa: E402
 from featherstar.optimizer.objective import SceneObjective  # noqa: E402
 from featherstar.optimizer.space import stroke_space  # noqa: E402
@@ -62,31 +72,41 @@ HIDDEN = {"feather.wake": "plate", "feather.added_mass_scale": 1.5, "feather.wak
           "feather.joint_damping_Nms_rad": 0.003}
 TARGET = 0.95
 REST_S = 3.0
+#: Periods run under each stroke before its measured ones (periodic steady state): see
+#: docs/bench-loop.md, "A prior that learns the simulation's bias" (the plate wake remembers the
+#: previous stroke; rest does not erase it, the new stroke does).
+SETTLE_PERIODS = 6
+MEASURED_PERIODS = 2
 ARMS = {"no_prior": None, "seeded_prior": "seed", "discrepancy_prior": "discrepancy"}
 MAX_PAUSES, PAUSE_S = 10, 10.0
+#: `--repeatability`'s repeated stroke (a fast downstroke; the studies repeat the simulation's best).
+REPEATABILITY_STROKE = {"log10_up_down": 0.2, "log10_hold_up_down": 0.3, "log10_hold_move": -0.8}
+#: The strokes the repeatability measurement puts before the repeated one: a slow downstroke with
+#: short holds, and a symmetric stroke with long holds (unlike each other and the optimum).
+REPEATABILITY_OTHERS = [{"log10_up_down": -0.25, "log10_hold_up_down": -0.9, "log10_hold_move": -0.4},
+                        {"log10_up_down": 0.0, "log10_hold_up_down": 0.0, "log10_hold_move": -1.2}]
 
 
 def simulated_prior(directory: Path, iterations: int) -> SimPrior:
     space = stroke_space(PERIOD_S)
-    plan = MeasurementPlan(load_cell=LoadCell(), settle_periods=1, periods=2, seed=100)
+    plan = MeasurementPlan(load_cell=LoadCell(), settle_periods=SETTLE_PERIODS, periods=MEASURED_PERIODS, seed=100)
     optimize(SceneObjective("testbed", FEATHER), space, directory / "evaluations.jsonl", iterations=iterations,
              plan=plan, context={"scene": "testbed", "overrides": FEATHER})
     return SimPrior.load(directory, feather=study_morphology("testbed", FEATHER), space=space, maximize=True)
 
 
-def bench_study(emulator, out: Path, seed: int, iterations: int, prior: SimPrior, use: str | None) -> dict:
-    options = "&timeout_s=0.3&reconnect_s=3&clock=device"
-    bench = BenchObjective("testbed", {"servo": emulator.servo_url + options + "&safe_timeout_s=2",
-                                       "loadcell": emulator.loadcell_url + options}, FEATHER, settle_periods=1,
-                           rest_s=REST_S)
-    plan = MeasurementPlan(load_cell=LoadCell(noise_sd_N=0.0, sample_rate_hz=250.0), settle_periods=1, periods=2,
-                           seed=seed)
+def bench_study(emulator, out: Path, seed: int, iterations: int, prior: SimPrior, use: str | None,
+                noise_floor_sd: float | None = None) -> dict:
+    bench = bench_objective(emulator, REST_S, SETTLE_PERIODS)
+    plan = MeasurementPlan(load_cell=LoadCell(noise_sd_N=0.0, sample_rate_hz=250.0), settle_periods=SETTLE_PERIODS,
+                           periods=MEASURED_PERIODS, seed=seed)
     started = time.perf_counter()
     pauses = 0
     while True:
         try:
             summary = run_bench_study(bench, stroke_space(PERIOD_S), out, plan=plan, iterations=iterations,
                                       prior=prior if use else None, prior_use=use or "seed", max_attempts=4,
+                                      noise_floor_sd=noise_floor_sd if use == "discrepancy" else None,
                                       validation_repeats=1, validation_periods=2, resume=pauses > 0)
             break
         except BenchFault as fault:   # wait, then resume the study as a user would
@@ -107,6 +127,87 @@ def bench_study(emulator, out: Path, seed: int, iterations: int, prior: SimPrior
             "pauses": pauses, "wall_s": time.perf_counter() - started}
 
 
+def bench_objective(emulator, rest_s: float, settle_periods: int) -> BenchObjective:
+    options = "&timeout_s=0.3&reconnect_s=3&clock=device"
+    return BenchObjective("testbed", {"servo": emulator.servo_url + options + "&safe_timeout_s=2",
+                                      "loadcell": emulator.loadcell_url + options}, FEATHER,
+                          settle_periods=settle_periods, rest_s=rest_s)
+
+
+def repeatability(emulator, stroke: dict, others: list[dict], rest_s: float, settle_periods: int,
+                  repeats: int = 2) -> dict:
+    """The same stroke measured after different strokes: `stroke`, then (other, stroke) for each of
+    `others`, `repeats` times. The first measurement follows whatever the bench did before (a fresh
+    emulator: rest); each later one follows a different stroke. Their sd is what a study's single
+    run of a stroke can be trusted to (the bench's repeatability), with len - 1 degrees of freedom."""
+    space = stroke_space(PERIOD_S)
+    bench = bench_objective(emulator, rest_s, settle_periods)
+    plan = MeasurementPlan(load_cell=LoadCell(noise_sd_N=0.0, sample_rate_hz=250.0), settle_periods=settle_periods,
+                           periods=MEASURED_PERIODS, seed=0)
+    sequence = [("stroke", stroke)] + [x for _ in range(repeats) for i, other in enumerate(others)
+                                       for x in ((f"other {i}", other), ("stroke", stroke))]
+    measured = []
+    started = time.perf_counter()
+    for k, (name, point) in enumerate(sequence):
+        for attempt in range(4):
+            try:
+                result = evaluate(bench, space.overrides(point), space.period_s, plan, ITERATION_STREAM, (k,))
+                break
+            except Exception as exc:   # a discarded run (deadline misses): measure again
+                print(f"  repeatability run {k} {name}: {str(exc)[:100]}; again", flush=True)
+        else:
+            raise RuntimeError("the bench does not keep time")
+        measured.append({"run": name, "after": sequence[k - 1][0] if k else "rest (fresh emulator)",
+                         "thrust_ratio": result.thrust_ratio})
+        print(f"  rest {rest_s:g} s, {settle_periods} settling: {name} after {measured[-1]['after']}: "
+              f"TR {result.thrust_ratio:.4f}", flush=True)
+    same = np.array([m["thrust_ratio"] for m in measured if m["run"] == "stroke"])
+    return {"rest_s": rest_s, "settle_periods": settle_periods, "measured_periods": MEASURED_PERIODS, "runs": measured,
+            "stroke": stroke, "others": others, "same_stroke_thrust_ratio": same.tolist(),
+            "same_stroke_sd_thrust_ratio": float(np.std(same, ddof=1)),
+            "same_stroke_sd_after_first_thrust_ratio": float(np.std(same[1:], ddof=1)),
+            "wall_s": time.perf_counter() - started}
+
+
+def settling_curve(emulator, stroke: dict, others: list[dict], rest_s: float, periods: int = 12,
+                   repeats: int = 2) -> list[dict]:
+    """TR of each period of `stroke` from its start (no settling), after each of `others`,
+    `repeats` times: how many periods the bench needs before a stroke's TR no longer depends on
+    the stroke before it (its periodic steady state)."""
+    space = stroke_space(PERIOD_S)
+    bench = bench_objective(emulator, rest_s, 0)
+    plan = MeasurementPlan(load_cell=LoadCell(noise_sd_N=0.0, sample_rate_hz=250.0), settle_periods=0,
+                           periods=MEASURED_PERIODS, seed=0)
+    curves = []
+    for rep in range(repeats):
+        for i, other in enumerate(others):
+            evaluate(bench, space.overrides(other), space.period_s, plan, ITERATION_STREAM, (0,))
+            v = validate(bench, space.overrides(stroke), space.period_s, plan, (1,), repeats=periods, periods=1)
+            curves.append({"after": f"other {i}", "repeat": rep,
+                           "thrust_ratio_per_period": [m.thrust_ratio for m in v.repeats]})
+            print(f"  after other {i}: " + " ".join(f"{m.thrust_ratio:.3f}" for m in v.repeats), flush=True)
+    return curves
+
+
+def measure_repeatability(out: Path, configs: list[tuple[float, int]]) -> None:
+    """--repeatability: the same stroke after different strokes at each (rest_s, settle_periods),
+    and the per-period settling curve, each on a fresh emulator; writes bench_loop_repeatability.json."""
+    logging.getLogger("hil").setLevel(logging.ERROR)
+    result = {"stroke": REPEATABILITY_STROKE, "others": REPEATABILITY_OTHERS, "configs": [], "settling_curve": None}
+    for config in [*configs, None]:   # None: the settling curve
+        emulator = spawn_emulator(plant="fmu", morphology="plain", noise_N=0.005, seed=7, plant_parameters=HIDDEN,
+                                  start_timeout_s=300.0)
+        try:
+            if config is None:
+                result["settling_curve"] = settling_curve(emulator, REPEATABILITY_STROKE, REPEATABILITY_OTHERS, REST_S)
+            else:
+                result["configs"].append(repeatability(emulator, REPEATABILITY_STROKE, REPEATABILITY_OTHERS, *config))
+        finally:
+            emulator.stop()
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "bench_loop_repeatability.json").write_text(json.dumps(result, indent=2) + "\n")
+
+
 def iterations_to(observed: list[float], threshold: float) -> int | None:
     return next((i + 1 for i, tr in enumerate(observed) if tr >= threshold), None)
 
@@ -120,7 +221,15 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=Path(__file__).parent.parent / "docs" / "results")
     parser.add_argument("--reanalyse", action="store_true",
                         help="no bench: redo the analysis and the plot of OUT/bench_loop_prior.json's studies")
+    parser.add_argument("--repeatability", nargs="*", metavar="REST_S:SETTLE", default=None,
+                        help="no studies: measure the bench's repeatability at each rest/settling setting "
+                             "(default 3:1 3:3 10:1 3:6) and the per-period settling curve")
     args = parser.parse_args()
+    if args.repeatability is not None:
+        configs = [(float(a.split(":")[0]), int(a.split(":")[1])) for a in args.repeatability or
+                   ["3:1", "3:3", "10:1", "3:6"]]
+        measure_repeatability(args.out, configs)
+        return
     if args.reanalyse:
         write(json.loads((args.out / "bench_loop_prior.json").read_text()), args.out)
         return
@@ -141,9 +250,18 @@ def main() -> None:
                                   start_timeout_s=300.0)
         studies = []
         try:
+            # The bench's repeatability, before any study, at the studies' settings: the prior's
+            # best stroke (every prior arm's first) after two other strokes, twice each. Its sd is
+            # the discrepancy arm's noise floor (a property of the bench, measured once, not per study).
+            best = SimulationModel(space, prior.points, prior.values).best_point(maximize=True)
+            repeat = repeatability(emulator, best, REPEATABILITY_OTHERS, REST_S, SETTLE_PERIODS)
+            noise_floor_sd = repeat["same_stroke_sd_thrust_ratio"]
+            print(f"repeatability: {repeat['same_stroke_thrust_ratio']} -> sd {noise_floor_sd:.4f} TR "
+                  f"(the discrepancy arm's noise floor)", flush=True)
             for seed in range(seeds):
                 for name, use in ARMS.items():
-                    study = bench_study(emulator, tmp / f"bench-{seed}-{name}", seed, iterations, prior, use)
+                    study = bench_study(emulator, tmp / f"bench-{seed}-{name}", seed, iterations, prior, use,
+                                        noise_floor_sd)
                     study["arm"] = name
                     studies.append(study)
                     print(f"seed {seed} {name}: TR {' '.join(f'{x:.3f}' for x in study['observed_thrust_ratio'])}; "
@@ -156,14 +274,18 @@ def main() -> None:
         "question": f"bench iterations to reach {TARGET:.0%} of the best measured TR: no prior, seeded prior, "
                     "discrepancy prior, on a bench whose physics differ from the simulation's",
         "simulated_prior_best_thrust_ratio": max(prior.values), "simulation_gp_holdout": holdout,
+        "bench_repeatability": repeat, "noise_floor_sd": noise_floor_sd,
         "studies": studies,
         "setup": {"feather": FEATHER, "simulation": "testbed scene, default coefficients, wake none (quasi-steady)",
                   "hidden_plant": HIDDEN, "emulator": "FMU plant (servo + plain feather), noise 5 mN, device-timed",
-                  "rest_s": REST_S, "period_s": PERIOD_S, "settle_periods": 1, "measured_periods": 2,
+                  "rest_s": REST_S, "period_s": PERIOD_S, "settle_periods": SETTLE_PERIODS,
+                  "measured_periods": MEASURED_PERIODS,
                   "iterations": iterations, "sim_iterations": sim_iterations, "seeds": seeds, "quick": args.quick},
         "wall_s": time.perf_counter() - started,
         "machine": {"python": platform.python_version(), "cpus": os.cpu_count(), "load_average": os.getloadavg()},
     }
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / "bench_loop_prior.json").write_text(json.dumps(result, indent=2) + "\n")   # kept if analysis fails
     write(result, args.out)
 
 

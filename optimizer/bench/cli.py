@@ -18,6 +18,7 @@ from ..loadcell import DEFAULT_NOISE_SD_N, LoadCell
 from ..options import count, number
 from ..space import SearchSpace
 from .objective import DEFAULT_MAX_ATTEMPTS, DEFAULT_REST_S, BenchObjective
+from .discrepancy import DEFAULT_NOISE_FLOOR_TR
 from .run import BenchFault
 from .sim_prior import SimPrior, study_morphology
 from .study import BENCH_VALIDATION_PERIODS, BENCH_VALIDATION_REPEATS, PRIOR_USES, run_bench_study
@@ -52,6 +53,10 @@ def add_bench_options(parser: argparse.ArgumentParser) -> None:
                        help="how the bench study uses --prior: seed = its best strokes are the initial design "
                             "(default); discrepancy = the study's model is that study's simulation plus a learned "
                             "discrepancy (each bench stroke is simulated too; docs/bench-loop.md)")
+    group.add_argument("--noise-floor-tr", type=float, default=None, metavar="SD",
+                       help="with --prior-use discrepancy: the bench's repeatability, the sd of one stroke's TR "
+                            f"measured after different strokes; the least noise the discrepancy may assume "
+                            f"(default {DEFAULT_NOISE_FLOOR_TR:g}; docs/bench-loop.md)")
 
 
 def check_bench_arguments(args: argparse.Namespace) -> None:
@@ -59,11 +64,16 @@ def check_bench_arguments(args: argparse.Namespace) -> None:
     if not args.hardware:
         for flag, given in (("--prior", args.prior is not None), ("--rest-s", args.rest_s != DEFAULT_REST_S),
                             ("--prior-use", args.prior_use != "seed"),
+                            ("--noise-floor-tr", args.noise_floor_tr is not None),
                             ("--max-attempts", args.max_attempts != DEFAULT_MAX_ATTEMPTS)):
             if given:
                 raise OptimizerError(f"{flag} applies to a study on the bench (--hardware servo=URL --hardware "
                                      "loadcell=URL)")
         return
+    if args.noise_floor_tr is not None and args.prior_use != "discrepancy":
+        raise OptimizerError("--noise-floor-tr applies to --prior-use discrepancy (the discrepancy's noise floor)")
+    if args.noise_floor_tr is not None and not args.noise_floor_tr > 0:
+        raise OptimizerError(f"--noise-floor-tr {args.noise_floor_tr} must be a positive TR")
     if args.prior_use != "seed" and args.prior is None:
         raise OptimizerError(f"--prior-use {args.prior_use} needs --prior DIR (a simulated study of the same feather)")
     if args.scheduler or args.batch_size != 1 or args.workers not in (None, 1):
@@ -99,7 +109,8 @@ def bench_optimize(args: argparse.Namespace, space: SearchSpace, overrides: dict
         summary = run_bench_study(
             bench, space, args.out, plan=plan, iterations=args.iterations, maximize=maximize, resume=args.resume,
             max_attempts=args.max_attempts, validation_repeats=args.validation_repeats,
-            validation_periods=args.validation_periods, prior=prior, prior_use=args.prior_use, label=args.label or args.scene,
+            validation_periods=args.validation_periods, prior=prior, prior_use=args.prior_use,
+            noise_floor_sd=args.noise_floor_tr, label=args.label or args.scene,
             compare=compare, on_record=_print_record,
         )
     except BenchFault as fault:

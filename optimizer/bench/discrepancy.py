@@ -13,15 +13,28 @@ model, in the form of Kennedy & O'Hagan (2001):
   the acquisition reads at its thousands of candidates, so the simulation is run once per bench
   iteration, not once per candidate. Its own posterior sd enters the model's sd (scaled by ρ).
 - δ(x), the discrepancy: a GP of the same form on the residuals y − ρ · s(x) at the bench's
-  points. Its amplitude, length scales and noise are fitted by maximum marginal likelihood at
-  every tell: where the bench agrees with the simulation the residuals are flat, δ learns a
-  small amplitude and the model follows the simulation between bench points; where they differ
-  δ grows and the bench data take over.
+  points (constant mean: the residuals' mean). Its amplitude, length scales and noise are fitted
+  by maximum marginal likelihood at every tell: where the bench agrees with the simulation the
+  residuals are flat, δ learns a small amplitude and the model follows the simulation between
+  bench points; where they differ δ grows and the bench data take over. With a handful of
+  points the unconstrained fit explains the bench's noise as structure (measured: white noise
+  → 0 and length scales at skopt's 0.01 bound after 10 bench runs), so two bounds are fixed
+  by the bench, not fitted:
+  * the white noise's sd is at least `noise_floor_sd` (TR), the bench's measured repeatability
+    (the same stroke after different strokes; `bench/bench_loop_prior.py` measures it): a
+    residual that a repeat of the same stroke would not reproduce is not discrepancy;
+  * every length scale is at least DELTA_MIN_LENGTH_SCALE = 0.1 of its variable's range (the
+    search box is the unit cube here): strokes closer than that are the same stroke as far as
+    the study resolves them (the seeded prior's MIN_SEPARATION, and the candidates' local
+    clouds of sd 0.05), so structure on that scale cannot be told from noise with a few runs.
 - ρ: the simulation's scale (the model's TR can be off by a factor, README: 1.73 vs ≈ 4), the
-  maximum a posteriori value on a grid over [0, RHO_MAX]: δ's log marginal likelihood (in TR
-  units, δ's hyperparameters profiled) plus a normal prior N(1, RHO_PRIOR_SD²), held at 1 (trust the simulation's scale)
-  until MIN_POINTS_FOR_RHO bench points exist. ρ = 0 is a bench-only GP with a constant mean:
-  a simulation that predicts nothing is left entirely.
+  posterior *mean* over a grid on [0, RHO_MAX] of δ's marginal likelihood (in TR units, δ's
+  hyperparameters profiled: refitted at every grid value) times a normal prior N(1,
+  RHO_PRIOR_SD²), held at 1 (trust the simulation's scale) until MIN_POINTS_FOR_RHO bench points
+  exist. Not the mode: with a few noisy points the likelihood is nearly flat in ρ and its mode
+  lands at whichever grid end the noise favours (measured: 2.5, 0, 0, 2.5, 0 over five
+  studies); the mean stays near the prior until the data speak, and moves to 0 when they do (a
+  simulation that predicts nothing: ρ = 0 is a bench-only GP with a constant mean).
 
 Acquisition: MATLAB's expected-improvement-plus (`featherstar.optimizer.acquisition`) on this
 model: the incumbent is the evaluated stroke with the best posterior mean, the over-exploitation
@@ -40,6 +53,7 @@ from typing import Mapping, Sequence
 import numpy as np
 from threadpoolctl import threadpool_limits
 from skopt.learning import GaussianProcessRegressor
+from skopt.learning.gaussian_process.kernels import ConstantKernel, Matern, WhiteKernel
 from skopt.space import Real, Space
 from skopt.utils import cook_estimator, normalize_dimensions
 
@@ -53,8 +67,14 @@ from ..space import SearchSpace
 
 RHO_MAX = 2.5
 RHO_GRID = np.linspace(0.0, RHO_MAX, 11)   # steps of 0.25
-RHO_PRIOR_SD = 0.5
+RHO_PRIOR_SD = 0.5   # a factor of 2 in the simulation's TR variation is 2 sd
 MIN_POINTS_FOR_RHO = 3
+#: δ's smallest length scale, as a fraction of each variable's range (module doc).
+DELTA_MIN_LENGTH_SCALE = 0.1
+DELTA_MAX_LENGTH_SCALE = 100.0   # skopt's: a flat direction
+#: The white noise's sd floor when the bench's repeatability was not measured: the emulator's
+#: same stroke back to back repeats to 1 % (docs/bench-loop.md); measure yours (noise_floor_sd).
+DEFAULT_NOISE_FLOOR_TR = 0.01
 _GLOBAL_CANDIDATES = 2000
 _LOCAL_CANDIDATES = 300
 _LOCAL_CENTRES = 3
@@ -65,6 +85,22 @@ def _gp(space: Space, seed: int, restarts: int = 2) -> GaussianProcessRegressor:
     gp = cook_estimator("GP", space=space, random_state=seed, noise="gaussian")
     gp.set_params(n_restarts_optimizer=restarts)
     return gp
+
+
+def _delta_gp(n_dims: int, y: np.ndarray, noise_floor_sd: float, seed: int,
+              restarts: int = 2) -> GaussianProcessRegressor:
+    """δ's GP for residuals y: skopt's form (constant × Matérn-5/2 ARD + white noise, normalised y)
+    with length scales >= DELTA_MIN_LENGTH_SCALE and a white-noise sd >= noise_floor_sd (TR). The
+    GP normalises y by its sd, so the floor is set in those units for these y."""
+    scale = float(np.std(y)) if len(y) > 1 and np.std(y) > 0 else 1.0
+    floor = (noise_floor_sd / scale) ** 2
+    white = WhiteKernel(noise_level=max(floor, min(1.0, 10 * floor)),
+                        noise_level_bounds=(floor, max(1e5, 10 * floor)))
+    kernel = ConstantKernel(1.0, (0.01, 1000.0)) * Matern(
+        length_scale=np.ones(n_dims), length_scale_bounds=[(DELTA_MIN_LENGTH_SCALE, DELTA_MAX_LENGTH_SCALE)] * n_dims,
+        nu=2.5) + white
+    return GaussianProcessRegressor(kernel=kernel, normalize_y=True, noise="gaussian",
+                                    n_restarts_optimizer=restarts, random_state=seed)
 
 
 def _fit(gp: GaussianProcessRegressor, X: np.ndarray, y: np.ndarray) -> GaussianProcessRegressor:
@@ -166,9 +202,15 @@ class DiscrepancyOptimizer:
     bench value told for a stroke whose simulation was not told is refused."""
 
     def __init__(self, space: SearchSpace, simulation: SimulationModel, *, maximize: bool = True,
-                 exploration_ratio: float = DEFAULT_EXPLORATION_RATIO, seed: int = 0) -> None:
+                 exploration_ratio: float = DEFAULT_EXPLORATION_RATIO, seed: int = 0,
+                 noise_floor_sd: float = DEFAULT_NOISE_FLOOR_TR) -> None:
+        """`noise_floor_sd`: the bench's repeatability in TR (sd of one stroke measured after
+        different strokes), the least noise δ may assume (module doc)."""
         if not exploration_ratio >= 0:
             raise OptimizerError(f"exploration_ratio = {exploration_ratio} must be >= 0")
+        if not (math.isfinite(noise_floor_sd) and noise_floor_sd > 0):
+            raise OptimizerError(f"noise_floor_sd = {noise_floor_sd!r} must be a positive TR")
+        self.noise_floor_sd = float(noise_floor_sd)
         self.space = space
         self.simulation = simulation
         self.maximize = maximize
@@ -216,22 +258,32 @@ class DiscrepancyOptimizer:
         Xt = self.simulation.transform(X)
         s = self.simulation.predict(X)
         y = np.array(self._y)
-        space = self.simulation.skspace
+        d = Xt.shape[1]
         if self._delta is None:
             rho = 1.0
             if len(y) >= MIN_POINTS_FOR_RHO:
-                # Profile: δ's hyperparameters fitted once (at the last ρ), each grid ρ then costs
-                # one Cholesky, not a hyperparameter search; they are refitted at the chosen ρ.
-                kernel = _fit(_gp(space, self.seed, restarts=0), Xt, self._sign * (y - self._rho * s)).kernel_
-
-                def score(r: float) -> float:
-                    gp = _fit(GaussianProcessRegressor(kernel=kernel, optimizer=None, normalize_y=True), Xt,
-                              self._sign * (y - r * s))
-                    return log_evidence_tr(gp) - 0.5 * ((r - 1.0) / RHO_PRIOR_SD) ** 2
-                rho = float(max(RHO_GRID, key=score))
+                rho = float(np.sum(self.rho_posterior() * RHO_GRID))
             self._rho = rho
-            self._delta = _fit(_gp(space, self.seed), Xt, self._sign * (y - rho * s))
+            residuals = self._sign * (y - rho * s)
+            self._delta = _fit(_delta_gp(d, residuals, self.noise_floor_sd, self.seed), Xt, residuals)
         return self._delta, Xt, self._sign * (y - self._rho * s)
+
+    def rho_posterior(self) -> np.ndarray:
+        """ρ's posterior on RHO_GRID (sums to 1): δ's marginal likelihood of the residuals at each
+        ρ, in TR units, its hyperparameters refitted there (profiled), times the prior
+        N(1, RHO_PRIOR_SD²)."""
+        X = np.array(self._X)
+        Xt = self.simulation.transform(X)
+        s = self.simulation.predict(X)
+        y = np.array(self._y)
+        log_post = []
+        for r in RHO_GRID:
+            residuals = self._sign * (y - r * s)
+            gp = _fit(_delta_gp(Xt.shape[1], residuals, self.noise_floor_sd, self.seed, restarts=1), Xt, residuals)
+            log_post.append(log_evidence_tr(gp) - 0.5 * ((r - 1.0) / RHO_PRIOR_SD) ** 2)
+        log_post = np.array(log_post)
+        weights = np.exp(log_post - log_post.max())
+        return weights / weights.sum()
 
     @property
     def rho(self) -> float:
@@ -300,9 +352,11 @@ class DiscrepancyOptimizer:
         return self._sign * mean, sd
 
     def describe(self) -> dict:
-        return {"rho": self.rho, "bench_points": self.n_told,
+        return {"rho": self.rho, "bench_points": self.n_told, "noise_floor_sd": self.noise_floor_sd,
                 "simulated_points": self.simulation.n_points,
-                "delta_kernel": None if self._delta is None else str(self._delta.kernel_)}
+                "delta_kernel": None if self._delta is None else str(self._delta.kernel_),
+                # the kernel prints its white noise as 0 (skopt moves it to noise_ after the fit)
+                "delta_noise_sd": None if self._delta is None else noise_sd(self._delta)}
 
     def _candidates(self, rng: np.random.Generator, X: np.ndarray) -> np.ndarray:
         """Uniform over the feasible space, plus local clouds around the best-mean bench points and

@@ -47,7 +47,7 @@ from ..study import (
 from ..study_log import check_in_order, study_entries
 from .objective import DEFAULT_MAX_ATTEMPTS, BenchObjective, Retrying
 from .run import BenchFault
-from .discrepancy import DiscrepancyOptimizer, SimulationModel
+from .discrepancy import DEFAULT_NOISE_FLOOR_TR, DiscrepancyOptimizer, SimulationModel
 from .sim_prior import SimPrior
 
 BENCH_VALIDATION_REPEATS = 10
@@ -71,6 +71,7 @@ def run_bench_study(
     validation_periods: int = BENCH_VALIDATION_PERIODS,
     prior: SimPrior | None = None,
     prior_use: str = "seed",
+    noise_floor_sd: float | None = None,
     label: str = "feather",
     compare: tuple[Mapping, ...] = (),
     on_record: Callable[[dict], None] | None = None,
@@ -82,11 +83,16 @@ def run_bench_study(
     log record (progress display). Raises BenchFault (study paused, resumable) on a device fault.
     `prior_use`: "seed" (the prior's best strokes are the initial design) or "discrepancy" (the
     surrogate is the prior's simulation plus a learned discrepancy; each bench stroke is also
-    simulated, by `prior.simulation()`).
+    simulated, by `prior.simulation()`). `noise_floor_sd` (discrepancy only): the bench's measured
+    repeatability in TR, the least noise the discrepancy may assume (default
+    DEFAULT_NOISE_FLOOR_TR; featherstar.optimizer.bench.discrepancy).
     """
     if prior_use not in PRIOR_USES:
         raise OptimizerError(f"prior use {prior_use!r}: valid values are {', '.join(PRIOR_USES)}")
     discrepancy = prior is not None and prior_use == "discrepancy"
+    if noise_floor_sd is not None and not discrepancy:
+        raise OptimizerError("noise_floor_sd applies to prior_use='discrepancy' with a prior")
+    noise_floor_sd = DEFAULT_NOISE_FLOOR_TR if noise_floor_sd is None else noise_floor_sd
     if discrepancy:
         n_initial_points = 1   # the simulation's best stroke; then the model (discrepancy module)
     if iterations < n_initial_points:
@@ -107,7 +113,8 @@ def run_bench_study(
         "n_initial_points": n_initial_points,
         "exploration_ratio": exploration_ratio,
         "validation": {"repeats": validation_repeats, "periods": validation_periods},
-        "prior": None if prior is None else {**prior.describe(), "use": prior_use},
+        "prior": None if prior is None else {**prior.describe(), "use": prior_use,
+                                             **({"noise_floor_sd": noise_floor_sd} if discrepancy else {})},
     }
     log = ExperimentLog.open(out_dir / "evaluations.jsonl", header, resume=resume)
     check_log(log, bench_entries(space, iterations))
@@ -121,7 +128,8 @@ def run_bench_study(
     simulations = {r["index"]: r for r in study.of_kind("simulation")}
     if discrepancy:
         optimizer = DiscrepancyOptimizer(space, SimulationModel(space, prior.points, prior.values, seed=plan.seed),
-                                         maximize=maximize, exploration_ratio=exploration_ratio, seed=plan.seed)
+                                         maximize=maximize, exploration_ratio=exploration_ratio, seed=plan.seed,
+                                         noise_floor_sd=noise_floor_sd)
         sim_objective, sim_plan = prior.simulation()
         initial = []
         for r in evaluations:

@@ -9,7 +9,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from featherstar.optimizer.bench.discrepancy import DiscrepancyOptimizer, SimulationModel
+from featherstar.optimizer.bench.discrepancy import (
+    DELTA_MIN_LENGTH_SCALE, RHO_GRID, DiscrepancyOptimizer, SimulationModel,
+)
 from featherstar.optimizer.bench.sim_prior import SimPrior
 from featherstar.optimizer.bench.study import run_bench_study, validated_best
 from featherstar.optimizer.cli import main as optimizer_main
@@ -39,8 +41,8 @@ def simulated_model(n: int = 25) -> SimulationModel:
     return SimulationModel(SPACE, study, [sim_tr(p) for p in study])
 
 
-def told(bench, n: int, seed: int = 1) -> DiscrepancyOptimizer:
-    optimizer = DiscrepancyOptimizer(SPACE, simulated_model(), seed=3)
+def told(bench, n: int, seed: int = 1, **kwargs) -> DiscrepancyOptimizer:
+    optimizer = DiscrepancyOptimizer(SPACE, simulated_model(), seed=3, **kwargs)
     for p in points(n, seed):
         optimizer.tell_simulation(p, sim_tr(p))
         optimizer.tell(p, bench(p))
@@ -75,6 +77,73 @@ def test_a_simulation_unrelated_to_the_bench_is_left():
     optimizer = told(flat, 8)
     assert optimizer.rho < 0.5
     assert rms_error(optimizer, flat) < 0.05
+
+
+def noisy(bench, sd: float, seed: int):
+    """The bench plus independent Gaussian noise of sd `sd` per run (deterministic per seed)."""
+    rng = np.random.default_rng(seed)
+    return lambda p: bench(p) + sd * float(rng.standard_normal())
+
+
+def delta_length_scales(optimizer: DiscrepancyOptimizer) -> np.ndarray:
+    optimizer.predict(points(1, 0))   # fitted
+    return np.atleast_1d(optimizer._delta.kernel_.k1.k2.length_scale)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_pure_noise_is_not_fitted_as_discrepancy_given_the_noise_floor(seed):
+    # The bench is the simulation minus 0.1 plus run-to-run noise of sd 0.03 (the emulator's
+    # measured repeatability before settling): all δ may learn is the constant.
+    sd = 0.03
+    truth = lambda p: sim_tr(p) - 0.1   # noqa: E731
+    optimizer = told(noisy(truth, sd, seed), 8, seed=seed + 10, noise_floor_sd=sd)
+    assert optimizer.noise_sd() >= sd * (1 - 1e-6)
+    assert np.all(delta_length_scales(optimizer) >= DELTA_MIN_LENGTH_SCALE * (1 - 1e-6))
+    # Between the bench points the model is the truth to better than half a run's noise; a GP
+    # that interpolates the noise carries it (and its wiggles) between the points: with a floor
+    # of sd/100 and skopt's 0.01 length-scale bound, these data gave 0.016 and 0.021 on seeds 0
+    # and 2 (0.011, 0.010, 0.012 with the rules).
+    assert rms_error(optimizer, truth) < 0.45 * sd
+
+
+def test_without_a_floor_the_same_noise_would_be_fitted_at_a_lower_noise_level():
+    # What the floor prevents (the previous bench's diagnosis): the same data, a floor 100× lower.
+    sd = 0.03
+    truth = lambda p: sim_tr(p) - 0.1   # noqa: E731
+    low = told(noisy(truth, sd, 0), 8, seed=10, noise_floor_sd=sd / 100)
+    floored = told(noisy(truth, sd, 0), 8, seed=10, noise_floor_sd=sd)
+    assert low.noise_sd() < floored.noise_sd()
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_rho_stays_near_one_when_the_bench_is_the_simulation_up_to_a_constant_and_noise(seed):
+    sd = 0.03
+    optimizer = told(noisy(lambda p: sim_tr(p) - 0.1, sd, seed), 6, seed=seed + 20, noise_floor_sd=sd)
+    assert 0.75 <= optimizer.rho <= 1.25
+    posterior = optimizer.rho_posterior()
+    assert posterior.sum() == pytest.approx(1.0)
+    # Not at a grid end: the evidence here is for the simulation's scale.
+    assert posterior[0] < 0.05 and posterior[-1] < 0.05
+
+
+def test_rho_is_the_prior_s_when_the_bench_points_carry_no_information_about_it():
+    # Three bench runs where the simulation is flat (its peak is elsewhere), each 1.0 ± noise: the
+    # likelihood cannot tell one ρ from another there, so ρ stays near the prior's 1. (The mode of
+    # this nearly flat likelihood is wherever the noise puts it; before, ρ landed at grid ends.)
+    candidates = points(400, 5)
+    flat = [p for p in candidates if sim_tr(p) < 1.01][:3]
+    assert len(flat) == 3
+    optimizer = DiscrepancyOptimizer(SPACE, simulated_model(), seed=3, noise_floor_sd=0.03)
+    for k, p in enumerate(flat):
+        optimizer.tell_simulation(p, sim_tr(p))
+        optimizer.tell(p, 1.0 + 0.03 * (-1) ** k)
+    assert 0.5 <= optimizer.rho <= 1.5
+    assert RHO_GRID[0] == 0.0 and optimizer.rho not in (RHO_GRID[0], RHO_GRID[-1])
+
+
+def test_the_noise_floor_must_be_positive():
+    with pytest.raises(OptimizerError, match="noise_floor_sd"):
+        DiscrepancyOptimizer(SPACE, simulated_model(), noise_floor_sd=0.0)
 
 
 def test_ask_tell_order_first_point_and_determinism():
@@ -170,6 +239,20 @@ def test_a_finished_study_is_not_resumed_with_a_larger_budget(tmp_path):
         run_bench_study(bench, SPACE, tmp_path, iterations=5, resume=True, **kwargs)
 
 
+def test_the_bench_s_noise_floor_reaches_the_model_and_the_log(tmp_path):
+    bench = SyntheticBench(SyntheticFeather(morphology="chordwise"), {})
+    summary = run_bench_study(bench, SPACE, tmp_path / "d", plan=PLAN, iterations=2, validation_repeats=1,
+                              validation_periods=1, prior=synthetic_prior(tmp_path), prior_use="discrepancy",
+                              noise_floor_sd=0.025)
+    header = json.loads((tmp_path / "d" / "evaluations.jsonl").read_text().splitlines()[0])
+    assert json.dumps(0.025) in json.dumps(header)
+    assert summary["prior"]["model"]["noise_floor_sd"] == 0.025
+    assert summary["prior"]["model"]["delta_noise_sd"] >= 0.025 * (1 - 1e-6)
+    with pytest.raises(OptimizerError, match="noise_floor_sd applies to prior_use='discrepancy'"):
+        run_bench_study(bench, SPACE, tmp_path / "s", plan=PLAN, iterations=2, prior=synthetic_prior(tmp_path),
+                        noise_floor_sd=0.025)
+
+
 def test_an_unknown_prior_use_is_refused(tmp_path):
     with pytest.raises(OptimizerError, match="prior use 'mixed': valid values are seed, discrepancy"):
         run_bench_study(SyntheticBench(SyntheticFeather(), {}), SPACE, tmp_path, plan=PLAN, iterations=4,
@@ -180,6 +263,9 @@ def test_an_unknown_prior_use_is_refused(tmp_path):
     (["--prior-use", "discrepancy"], "--prior-use applies to a study on the bench"),
     (["--hardware", "servo=modbus-tcp://127.0.0.1:1?unit=2", "--hardware", "loadcell=modbus-tcp://127.0.0.1:1?unit=1",
       "--prior-use", "discrepancy"], "--prior-use discrepancy needs --prior DIR"),
+    (["--noise-floor-tr", "0.02"], "--noise-floor-tr applies to a study on the bench"),
+    (["--hardware", "servo=modbus-tcp://127.0.0.1:1?unit=2", "--hardware", "loadcell=modbus-tcp://127.0.0.1:1?unit=1",
+      "--noise-floor-tr", "0.02"], "--noise-floor-tr applies to --prior-use discrepancy"),
 ])
 def test_prior_use_without_its_setting_is_refused_in_one_line(tmp_path, capsys, args, message):
     assert optimizer_main(["optimize", "testbed", "--out", str(tmp_path / "out"), *args]) == 2
