@@ -53,7 +53,7 @@ def add_bench_options(parser: argparse.ArgumentParser) -> None:
                        help="how the bench study uses --prior: seed = its best strokes are the initial design "
                             "(default); discrepancy = the study's model is that study's simulation plus a learned "
                             "discrepancy (each bench stroke is simulated too; docs/bench-loop.md)")
-    group.add_argument("--noise-floor-tr", type=float, default=None, metavar="SD",
+    group.add_argument("--noise-floor-tr", type=number(above=0.0), default=None, metavar="SD",
                        help="with --prior-use discrepancy: the bench's repeatability, the sd of one stroke's TR "
                             f"measured after different strokes; the least noise the discrepancy may assume "
                             f"(default {DEFAULT_NOISE_FLOOR_TR:g}; docs/bench-loop.md)")
@@ -72,8 +72,6 @@ def check_bench_arguments(args: argparse.Namespace) -> None:
         return
     if args.noise_floor_tr is not None and args.prior_use != "discrepancy":
         raise OptimizerError("--noise-floor-tr applies to --prior-use discrepancy (the discrepancy's noise floor)")
-    if args.noise_floor_tr is not None and not args.noise_floor_tr > 0:
-        raise OptimizerError(f"--noise-floor-tr {args.noise_floor_tr} must be a positive TR")
     if args.prior_use != "seed" and args.prior is None:
         raise OptimizerError(f"--prior-use {args.prior_use} needs --prior DIR (a simulated study of the same feather)")
     if args.scheduler or args.batch_size != 1 or args.workers not in (None, 1):
