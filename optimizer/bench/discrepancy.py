@@ -39,7 +39,15 @@ model, in the form of Kennedy & O'Hagan (2001):
 Acquisition: MATLAB's expected-improvement-plus (`featherstar.optimizer.acquisition`) on this
 model: the incumbent is the evaluated stroke with the best posterior mean, the over-exploitation
 test compares the model's sd with the noise sd δ estimated, and a retry inflates δ's variance.
-The first stroke, before any bench data, is the simulated study's best evaluated one.
+
+Initial design. δ is identified by bench points alone: from one point it is a constant, the
+model's shape is the simulation's, and expected improvement asks at the simulation's optimum
+again and again (measured: 5-7 of 10 strokes within 5 % of the range of the first, on a bench
+whose wake reverses the simulation's ranking inside its optimum region; docs/bench-loop.md). A
+study therefore measures an initial design before asking the model: the simulated study's best
+strokes kept 10 % of each range apart (`SimPrior.initial_points`, the seeded prior's design), so
+δ's first fit has contrasts inside the region the simulation calls good. Asked before any bench
+data, the optimizer proposes the simulation's best stroke.
 Deterministic for a seed and a history (randomness seeded by (seed, points told)), so a resumed
 study asks what the uninterrupted one would have.
 """
@@ -216,7 +224,7 @@ class DiscrepancyOptimizer:
         self.maximize = maximize
         self.exploration_ratio = exploration_ratio
         self.seed = seed
-        self.n_initial_points = 1   # the simulation's best stroke; then the model
+        self.n_initial_points = 1   # the model is defined from the first bench point (module doc: initial design)
         self.last_proposal: Proposal | None = None
         self._sign = -1.0 if maximize else 1.0
         self._X: list[list[float]] = []

@@ -14,9 +14,9 @@ replays the log and continues: a logged evaluation or validation is never run ag
 point asked next is the one the uninterrupted study would have asked (the optimizer's randomness
 is seeded by the number of points told). With a `SimPrior`, the initial design is the simulated
 study's best strokes instead of random ones (see featherstar.optimizer.bench.sim_prior). With
-`prior_use="discrepancy"` the study's surrogate is the simulation plus a learned discrepancy
-(featherstar.optimizer.bench.discrepancy): before each bench run the stroke is simulated too, and
-logged as
+`prior_use="discrepancy"` the initial design is the same, and after it the study's surrogate is the
+simulation plus a learned discrepancy (featherstar.optimizer.bench.discrepancy): before each bench
+run the stroke is simulated too, and logged as
 
     simulation   the simulation's TR at evaluation `index`'s stroke (once; a resume reuses it)
 
@@ -82,8 +82,8 @@ def run_bench_study(
     `plan` must read the bench's thrust as recorded (no added noise). `on_record` sees every new
     log record (progress display). Raises BenchFault (study paused, resumable) on a device fault.
     `prior_use`: "seed" (the prior's best strokes are the initial design) or "discrepancy" (the
-    surrogate is the prior's simulation plus a learned discrepancy; each bench stroke is also
-    simulated, by `prior.simulation()`). `noise_floor_sd` (discrepancy only): the bench's measured
+    same initial design, at most `iterations` of it; then the surrogate is the prior's simulation
+    plus a learned discrepancy; each bench stroke is also simulated, by `prior.simulation()`). `noise_floor_sd` (discrepancy only): the bench's measured
     repeatability in TR, the least noise the discrepancy may assume (default
     DEFAULT_NOISE_FLOOR_TR; featherstar.optimizer.bench.discrepancy).
     """
@@ -94,7 +94,9 @@ def run_bench_study(
         raise OptimizerError("noise_floor_sd applies to prior_use='discrepancy' with a prior")
     noise_floor_sd = DEFAULT_NOISE_FLOOR_TR if noise_floor_sd is None else noise_floor_sd
     if discrepancy:
-        n_initial_points = 1   # the simulation's best stroke; then the model (discrepancy module)
+        # Its model works from the first bench point; the initial design only has to give δ
+        # contrasts to learn from (the discrepancy module's doc), so a short study keeps fewer.
+        n_initial_points = min(n_initial_points, iterations)
     if iterations < n_initial_points:
         raise OptimizerError(f"iterations = {iterations} must be >= n_initial_points = {n_initial_points}")
     if plan.load_cell.noise_sd_N != 0:
@@ -131,13 +133,12 @@ def run_bench_study(
                                          maximize=maximize, exploration_ratio=exploration_ratio, seed=plan.seed,
                                          noise_floor_sd=noise_floor_sd)
         sim_objective, sim_plan = prior.simulation()
-        initial = []
         for r in evaluations:
             optimizer.tell_simulation(r["params"], simulations[r["index"]]["thrust_ratio"])
     else:
         optimizer = StrokeOptimizer(space, maximize=maximize, n_initial_points=n_initial_points,
                                     exploration_ratio=exploration_ratio, seed=plan.seed)
-        initial = prior.initial_points(space, n_initial_points, maximize=maximize) if prior else []
+    initial = prior.initial_points(space, n_initial_points, maximize=maximize) if prior else []
     optimizer.tell_many([r["params"] for r in evaluations], [r["thrust_ratio"] for r in evaluations])
     estimates = {r["index"]: r for r in study.of_kind("estimate")}
     started = time.perf_counter()
