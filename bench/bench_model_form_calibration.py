@@ -1,7 +1,7 @@
 """Model-form calibration against the emulator's plant: is the true wake law picked, and its coefficients recovered?
 
     python bench/bench_model_form_calibration.py [--quick] [--seeds 5] [--out docs/results] [--skip-realtime]
-        [--stroke symmetric|asymmetric] [--periods N] [--design NAME]
+        [--stroke symmetric|asymmetric] [--periods N] [--design NAME] [--realtime-cases]
 
 For each true law (none / relative / self / plate) and seed: the emulator's plant (the FMU plant,
 featherstar.hil.fmu_plant.FmuPlant, with that `wake` build option, as `featherstar emulate
@@ -22,6 +22,9 @@ prediction of it (unless --skip-realtime).
 
 The feather is the plain one (no hinge, so two coefficients per form: drag and added mass;
 its fits are the cheapest). `--quick`: one seed, the laws none and plate, two forms each.
+`--realtime-cases`: the cases' three recordings are made through the real-time emulator instead
+(device-timed, a fresh emulator per recording; `realtime_recordings`), the end-to-end check of a
+design; written to ..._realtime.json.
 `--periods N`: record N stroke periods (+ 0.2 s) and fit all N (the fit window; default 1).
 `--design NAME`: the stroke and periods of one of bench/model_form_design.py's DESIGNS (that
 script chooses the design that tells the wake laws apart, before this bench runs).
@@ -84,6 +87,32 @@ def hidden(law: str, seed: int) -> dict[str, float]:
     return {"wake_drag_coeff": float(WAKE_CONSTANTS[law][0] * factor), "added_mass_scale": added}
 
 
+def realtime_recordings(law: str, seed: int, truth: dict) -> tuple[list[Recording], list[list[str]]]:
+    """Three recordings through the real-time emulator (`featherstar emulate --plant-set
+    feather.wake=LAW ...` as a child process, the coefficients hidden), each on a fresh emulator
+    so that each starts from rest (the plate wake hardly decays at rest), device-timed
+    (`clock=device`: the devices keep time, so a loaded PC loses no samples; their load cell
+    integrates, so its samples are interval means, as the offline recordings'). Also each run's
+    discard reasons by the bench's rules (a discarded run is still returned: the caller reports it)."""
+    runs, reasons = [], []
+    options = "&timeout_s=0.3&reconnect_s=3&clock=device"
+    for k in range(RUNS):
+        emulator = spawn_emulator(plant="fmu", morphology=MORPHOLOGY, noise_N=0.005, seed=100 * seed + k,
+                                  start_timeout_s=300, plant_parameters={
+                                      "feather.wake": law, **{f"feather.{n}": v for n, v in truth.items()}})
+        try:
+            run = run_on_bench(SCENE, {"servo": emulator.servo_url + options,
+                                       "loadcell": emulator.loadcell_url + options},
+                               {**OVERRIDES, **STROKE, "controller.period_s": PERIOD_S, "master.step_s": 0.005,
+                                "master.t_end_s": DESIGN["record_s"], "metrics.settle_periods": 0})
+        finally:
+            emulator.stop()
+        runs.append(Recording(f"{law}-s{seed}-realtime{k}", run.time_s, run.angle_rad, run.thrust_N,
+                              ("s", "rad", "N"), PERIOD_S))
+        reasons.append(discard_reasons(run))
+    return runs, reasons
+
+
 def recordings(law: str, seed: int, truth: dict) -> list[Recording]:
     runs = []
     for k in range(RUNS):
@@ -94,10 +123,17 @@ def recordings(law: str, seed: int, truth: dict) -> list[Recording]:
     return runs
 
 
-def case(law: str, seed: int, forms: tuple[str, ...]) -> dict:
+def case(law: str, seed: int, forms: tuple[str, ...], realtime: bool = False) -> dict:
+    """One law and seed: record (offline, or through the real-time emulator), fit every form, choose."""
     truth = hidden(law, seed)
     started = time.perf_counter()
-    runs = recordings(law, seed, truth)
+    discarded: list[list[str]] = []
+    if realtime:
+        runs, discarded = realtime_recordings(law, seed, truth)
+        print(f"    recorded in real time ({time.perf_counter() - started:.0f} s); discard reasons: {discarded}",
+              flush=True)
+    else:
+        runs = recordings(law, seed, truth)
     last = [None]
 
     def progress(form: str, stage: str, n: int) -> None:
@@ -115,7 +151,8 @@ def case(law: str, seed: int, forms: tuple[str, ...]) -> dict:
            "tied": list(choice.tied), "reason": choice.reason, "hit": choice.chosen == law,
            "true_form_relative_error": errors,
            "true_form_within_tolerance": bool(errors) and all(abs(e) <= COEFFICIENT_TOLERANCE for e in errors.values()),
-           "forms": {f.form: f.as_dict() for f in fits}, "wall_s": round(time.perf_counter() - started, 1)}
+           "forms": {f.form: f.as_dict() for f in fits}, "wall_s": round(time.perf_counter() - started, 1),
+           **({"recordings": "real-time emulator, device-timed", "discard_reasons": discarded} if realtime else {})}
     print(f"  {law} seed {seed}: chose {choice.chosen or 'undecided'} ({choice.status}); held-out mN "
           + ", ".join(f"{f.form} {f.held_out_rms_N * 1e3:.2f}" for f in fits)
           + "; true form's errors " + ", ".join(f"{n} {e:+.1%}" for n, e in errors.items()), flush=True)
@@ -197,6 +234,9 @@ def main() -> None:
     p.add_argument("--part", default=None, metavar="NAME",
                    help="write the cases to bench_model_form_calibration_part-NAME.json (run laws in parallel)")
     p.add_argument("--realtime-only", action="store_true", help="only the real-time emulator check, into a part file")
+    p.add_argument("--realtime-cases", action="store_true",
+                   help="the cases' recordings through the real-time emulator (device-timed, a fresh emulator "
+                        "per recording) instead of offline; writes ..._realtime.json")
     p.add_argument("--merge", action="store_true", help="merge the part files in --out into the JSON and PNG")
     args = p.parse_args()
     if args.realtime_only:
@@ -215,6 +255,7 @@ def main() -> None:
     else:
         stem = ("bench_model_form_calibration" + ("" if args.stroke == "symmetric" else f"_{args.stroke}")
                 + ("" if args.periods == 1 else f"_{args.periods}periods"))
+    stem += "_realtime" if args.realtime_cases else ""
     if args.merge:
         merge(args.out, stem)
         return
@@ -231,16 +272,18 @@ def main() -> None:
                "setup": {"morphology": MORPHOLOGY, "stroke": {"name": args.stroke, "overrides": STROKE, "period_s": PERIOD_S},
                          "recordings_per_case": RUNS, "periods": args.periods, "window_s": DESIGN["window_s"],
                          "record_s": DESIGN["record_s"], "hidden_ranges": HIDDEN_RANGES,
-                         "forms": list(forms), "thrust_samples": THRUST_SAMPLES, "recordings": "the emulator's FMU plant stepped in simulated time "
-                         "as the bench client drives it (bench_calibration._offline_run)"},
+                         "forms": list(forms), "thrust_samples": THRUST_SAMPLES, "recordings": (
+                             "the real-time emulator (featherstar emulate, FMU plant), device-timed, a fresh "
+                             "emulator per recording" if args.realtime_cases else "the emulator's FMU plant stepped "
+                             "in simulated time as the bench client drives it (bench_calibration._offline_run)")},
                "cases": []}
     for seed in range(seeds):   # seed by seed: a run cut short still has every law
         for law in laws:
             print(f"law {law}, seed {seed} ...", flush=True)
-            results["cases"].append(case(law, seed, forms))
+            results["cases"].append(case(law, seed, forms, realtime=args.realtime_cases))
             results["summary"] = summary(results["cases"])
             path.write_text(json.dumps(results, indent=2) + "\n")
-    if not (args.skip_realtime or args.quick):
+    if not (args.skip_realtime or args.quick or args.realtime_cases):
         print("one real-time emulator recording (plate law) ...", flush=True)
         results["realtime_check"] = realtime_check()
         print(f"  {results['realtime_check']}", flush=True)
