@@ -30,7 +30,7 @@ def _check_out_dir(out: Path) -> None:
 
     problem = out_dir_problem(out)
     if problem:
-        raise SceneError(f"--out {out}: cannot write there (it {problem})")
+        raise SceneError(f"--out {out}: cannot write there: it {problem}")
     try:
         out.mkdir(parents=True, exist_ok=True)
         clear_outputs(out)
