@@ -8,7 +8,7 @@ import dataclasses
 from typing import Iterable
 
 from ..framework.block import passivity_by_convention
-from .blocks import ResolvedBlock
+from .block_kind import ResolvedBlock
 from .data import Connection, PortRef
 from .plan import Plan
 

@@ -27,7 +27,8 @@ from typing import Iterable, Sequence
 from ..errors import SceneError
 from ..fmi.fmi_types import conversion_problem
 from ..sccs import cycle_through, strongly_connected
-from .blocks import KINDS, ResolvedBlock, resolve
+from .block_kind import ResolvedBlock
+from .blocks import KINDS, resolve
 from .data import FrozenMap, PortRef, Scene
 from .specs import Connection
 from .fmu_ports import expand_array_connections, expand_array_refs, hold_unconnected_inputs, keep_used_outputs

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from .blocks import ResolvedBlock
+from .block_kind import ResolvedBlock
 from .data import Scene
 from .specs import PortRef
 

@@ -4,7 +4,7 @@ and nothing else that is Python code.
 Rather than knowing which fields a block kind imports (and missing the next kind's), every string
 of the package's featherstar annotation as written — keys and values, at any depth: its blocks,
 their parameters, master and metrics settings, overrides, whatever else — that has the shape of a
-code reference (featherstar.cosim.scene.blocks.CODE_REFERENCE, exactly what the master's one
+code reference (featherstar.cosim.scene.python_blocks.CODE_REFERENCE, exactly what the master's one
 import accepts) is judged; only free text the master never interprets (`description`) is skipped.
 The rest of a package (component names, FMU paths, numeric parameter values) names no code.
 """
@@ -13,7 +13,7 @@ from __future__ import annotations
 from typing import Any, Iterator
 
 from ..errors import SceneError
-from ..scene.blocks import CODE_REFERENCE, featherstar_block_class
+from ..scene.python_blocks import CODE_REFERENCE, featherstar_block_class
 
 #: Free text: shown, never interpreted.
 _TEXT_KEYS = frozenset({"description"})

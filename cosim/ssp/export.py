@@ -38,7 +38,8 @@ from typing import Any, Callable, Mapping
 from ...fmu_src.model import Model
 from ...fmu_src.si_units import base_unit
 from ..errors import SceneError
-from ..scene.blocks import Gain, ResolvedBlock
+from ..scene.block_kind import ResolvedBlock
+from ..scene.blocks import Gain
 from ..scene.data import MasterSpec, MetricsSpec, Scene
 from ..scene.graph import plan as make_plan
 from ..scene.plan import Plan

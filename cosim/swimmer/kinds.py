@@ -8,7 +8,8 @@ from typing import Any, Mapping
 
 from ...fmu_src.errors import ModelError
 from ..errors import SceneError
-from ..scene.blocks import BlockKind, ResolvedBlock, register_kind, where
+from ..scene.block_kind import BlockKind, ResolvedBlock, where
+from ..scene.blocks import register_kind
 from ..scene.specs import BlockSpec, FrozenMap, parse_value
 from .controller import COMMAND_KEYS, STROKE_KEYS, StrokeController, resolve_command, resolve_stroke
 

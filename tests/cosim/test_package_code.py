@@ -16,7 +16,7 @@ from typing import Any
 import pytest
 from conftest import OSCILLATOR, make_scene
 from featherstar.cosim.errors import SceneError
-from featherstar.cosim.scene.blocks import CODE_REFERENCE, featherstar_block_class
+from featherstar.cosim.scene.python_blocks import CODE_REFERENCE, featherstar_block_class
 from featherstar.cosim.scenes import load_scene
 from featherstar.cosim.ssp.export import export_ssp
 from featherstar.cosim.ssp.read import NS, SSD_NAME
@@ -29,7 +29,7 @@ from featherstar.app import main
 SCENE_TAG = f"{{{NS['fs']}}}Scene"
 FOREIGN = ["os:system", "subprocess:run", "builtins:eval", "toy_blocks:Poison", "toys:gain",
            "featherstar.__main__:main", "featherstar.app:main", "featherstar.cosim.ssp.export:export_ssp",
-           "featherstar.cosim.scene.blocks:_import", "featherstar.hil.blocks:Servo.__init__"]
+           "featherstar.cosim.scene.python_blocks:import_code", "featherstar.hil.blocks:Servo.__init__"]
 OWN = ["featherstar.hil.blocks:Servo", "featherstar.hil.blocks:LoadCell", "featherstar.cosim.scene.blocks:Gain",
        "featherstar.optimizer.calibration.playback:RecordedRoot"]
 
