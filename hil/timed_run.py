@@ -4,7 +4,8 @@ Streaming a setpoint every 4 ms from Python and reading the load cell on the sam
 INCOMPLETE on a loaded PC (deadline misses). With `clock=device` on both --hardware URLs the
 PC instead
   1. computes the stroke (the scene's open-loop stroke block, simulated alone, then clamped and
-     rate-limited as the streaming servo block does) and uploads it to the servo;
+     rate-limited as the streaming servo block does, after a first sample where the servo is:
+     `trajectory_samples`) and uploads it to the servo;
   2. starts both devices' sample logs, synchronises each device's clock with its own
      (shortest of several round trips), and arms the trajectory at a device-clock start time;
   3. polls in blocks (every POLL_S, whatever the load): the time-stamped samples of the load
@@ -21,7 +22,7 @@ from __future__ import annotations
 import logging
 import math
 import time
-from typing import Any, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -100,6 +101,24 @@ def stroke_of(scene: Scene, overrides: Mapping[str, Any]) -> tuple[str, np.ndarr
         {f"{block}.{str(k).partition('.')[2]}": v for k, v in mine.items()})
     result = run_scene(stroke_scene, outputs=[source])
     return source, np.asarray(result.time), np.asarray(result[source]), result.summary["period_s"]
+
+
+def trajectory_samples(present_rad: float, target_rad: Sequence[float], rate_limit_rad_s: float, step_s: float,
+                       clamp: Callable[[float], float]) -> list[float]:
+    """The servo's uploaded trajectory for targets sampled at t_k = k·step_s (k = 0..N).
+
+    Sample 0 is where the servo is: the player holds sample 0 from arming until its start
+    (docs/hil.md), so anything else would move the servo before the run's time zero (a stroke
+    that starts away from rest was pre-positioned by one rate-limited step, and the feather was
+    already moving at t = 0). Sample k >= 1 is the command for the step [t_(k-1), t_k): the target
+    at the step's end, clamped and rate-limited from the command before, exactly as the streaming
+    servo block commands it under the hardware scene's Gauss-Seidel coupling (the stroke is
+    stepped first; `Servo.do_step`). So the trajectory starts one period before time zero."""
+    samples = [float(present_rad)]
+    limit_rad = rate_limit_rad_s * step_s
+    for x in list(target_rad)[1:]:
+        samples.append(min(max(clamp(float(x)), samples[-1] - limit_rad), samples[-1] + limit_rad))
+    return samples
 
 
 def _blocks(sc: Scene) -> tuple[Servo, LoadCell]:
@@ -193,19 +212,17 @@ class _TimedRun:
         servo.start(0.0)             # connect, enable, arm the watchdog, read where it is
         for block in (servo, cell):  # the link is shared: set once, for both
             block.link.set_timeout(max(block.link.timeout_s, REQUEST_TIMEOUT_S))
-        commands, command = [], servo.command_rad
-        for x in target_rad:         # as the streaming servo block limits its commands
-            step = servo.rate_limit_rad_s * self.step_s
-            command = min(max(servo.clamp(float(x)), command - step), command + step)
-            commands.append(command)
-        self.commands_rad = np.asarray(commands)
-        self._guarded("servo", lambda: upload_trajectory(servo, self.step_s, commands))
+        samples = trajectory_samples(servo.command_rad, target_rad, servo.rate_limit_rad_s, self.step_s,
+                                     servo.clamp)
+        self.commands_rad = np.asarray(samples[1:] + samples[-1:])   # in force at each t_cmd
+        self._guarded("servo", lambda: upload_trajectory(servo, self.step_s, samples))
         self._guarded("servo", lambda: start_log(servo, self.step_s))
         self._guarded(LOADCELL_BLOCK, lambda: start_log(cell, self.step_s))
         sv_sync = self._guarded("servo", self.clocks["servo"].sync)
         self._guarded(LOADCELL_BLOCK, self.clocks["loadcell"].sync)
         self.t_start_pc = time.monotonic() + LEAD_S
-        self._guarded("servo", lambda: start_trajectory(servo, self.t_start_pc + sv_sync.offset_s))
+        # sample 1 (the first step's command) plays from run time 0: the trajectory starts a period earlier
+        self._guarded("servo", lambda: start_trajectory(servo, self.t_start_pc - self.step_s + sv_sync.offset_s))
         last_news = time.monotonic()
         while True:
             STOP.raise_if_requested()

@@ -113,3 +113,24 @@ def test_a_device_timed_run_stopped_midway_keeps_its_data_and_the_servo_safe(tmp
         assert len((tmp_path / "results.csv").read_text().splitlines()) > 100
         time.sleep(0.5)
         assert _position_deg(emulator.port) == pytest.approx(0.0, abs=0.5)
+
+
+def test_the_servo_does_not_move_before_time_zero(keeps_time):
+    # A stroke that starts away from rest (a ±75° stroke starts at -75°; the servo rests at 0):
+    # the player holds sample 0 from arming, 0.3 s before time zero, so sample 0 must be where
+    # the servo is. With the first step's command there, the servo had moved one rate-limited
+    # step (0.031 rad) before time zero, and the feather was already moving at t = 0.
+    from featherstar.optimizer.bench.run import run_on_bench
+
+    stroke = {"controller.amplitude_deg": 150.0, "controller.log10_up_down": 0.6, "controller.period_s": 1.0,
+              "master.step_s": 0.005, "master.t_end_s": 0.5, "metrics.settle_periods": 0,
+              "master.check_steps": False}   # the servo's timing is tested here, not the metrics
+    with spawn_emulator(plant="flat-plate", noise_N=0.0, seed=1) as emulator:
+        run = run_on_bench("testbed", {"servo": f"{emulator.servo_url}&clock=device",
+                                       "loadcell": f"{emulator.loadcell_url}&clock=device"}, stroke)
+    at_zero = [a for t, a in zip(run.time_s, run.angle_rad) if t <= 1e-9]
+    assert at_zero and max(abs(a) for a in at_zero) < 2e-4, at_zero   # the servo's 0.01° resolution
+    # and it starts moving at time zero, not a period later (the flat plate's servo lags its
+    # command by its own dynamics: a few ms)
+    moving = next(t for t, a in zip(run.time_s, run.angle_rad) if abs(a) > 1e-3)
+    assert 0.0 < moving <= 0.02, moving
