@@ -107,13 +107,13 @@ def trajectory_samples(present_rad: float, target_rad: Sequence[float], rate_lim
                        clamp: Callable[[float], float]) -> list[float]:
     """The servo's uploaded trajectory for targets sampled at t_k = k·step_s (k = 0..N).
 
-    Sample 0 is where the servo is: the player holds sample 0 from arming until its start
-    (docs/hil.md), so anything else would move the servo before the run's time zero (a stroke
-    that starts away from rest was pre-positioned by one rate-limited step, and the feather was
-    already moving at t = 0). Sample k >= 1 is the command for the step [t_(k-1), t_k): the target
-    at the step's end, clamped and rate-limited from the command before, exactly as the streaming
-    servo block commands it under the hardware scene's Gauss-Seidel coupling (the stroke is
-    stepped first; `Servo.do_step`). So the trajectory starts one period before time zero."""
+    Sample k is played from t_k: sample 0 is where the servo is (the player also holds it from
+    arming, 0.3 s ahead: anything else moved the servo before time zero; a stroke starting away
+    from rest was pre-positioned by one rate-limited step and the feather was moving at t = 0),
+    sample k >= 1 the target at t_k, clamped and rate-limited from the sample before. These are
+    a streamed run's setpoints on its record's time axis: under the hardware scene's Gauss-Seidel
+    coupling the streaming servo block writes the stroke at a step's end at the step's start, and
+    the master stamps what it reads then at the step's end; device samples carry their own time."""
     samples = [float(present_rad)]
     limit_rad = rate_limit_rad_s * step_s
     for x in list(target_rad)[1:]:
@@ -214,15 +214,14 @@ class _TimedRun:
             block.link.set_timeout(max(block.link.timeout_s, REQUEST_TIMEOUT_S))
         samples = trajectory_samples(servo.command_rad, target_rad, servo.rate_limit_rad_s, self.step_s,
                                      servo.clamp)
-        self.commands_rad = np.asarray(samples[1:] + samples[-1:])   # in force at each t_cmd
+        self.commands_rad = np.asarray(samples)   # sample k is in force from t_cmd[k]
         self._guarded("servo", lambda: upload_trajectory(servo, self.step_s, samples))
         self._guarded("servo", lambda: start_log(servo, self.step_s))
         self._guarded(LOADCELL_BLOCK, lambda: start_log(cell, self.step_s))
         sv_sync = self._guarded("servo", self.clocks["servo"].sync)
         self._guarded(LOADCELL_BLOCK, self.clocks["loadcell"].sync)
         self.t_start_pc = time.monotonic() + LEAD_S
-        # sample 1 (the first step's command) plays from run time 0: the trajectory starts a period earlier
-        self._guarded("servo", lambda: start_trajectory(servo, self.t_start_pc - self.step_s + sv_sync.offset_s))
+        self._guarded("servo", lambda: start_trajectory(servo, self.t_start_pc + sv_sync.offset_s))
         last_news = time.monotonic()
         while True:
             STOP.raise_if_requested()
