@@ -25,7 +25,12 @@
    `null`). Targets (issue 26): discrepancy mean ≤ half the no-prior mean, and on no seed more than
    one iteration worse than no prior.
 
-Each run rests the feather REST_S (3 s), then runs SETTLE_PERIODS (6) periods of the new stroke
+Each run rests the feather REST_S (12 s, counted from the previous run's end, so the studies'
+compute time between runs is part of it: `--rest-curve` measures why: a tare taken while the
+feather still rings offsets the run, and with 3 s the same stroke after the same stroke
+measured TR 0.97-1.11 depending on the second of the ring the tare fell in; the discrepancy arm,
+which computes about a second longer between runs, measured the seeded design's strokes 0.05
+lower than the seeded arm did), then runs SETTLE_PERIODS (6) periods of the new stroke
 before its MEASURED_PERIODS (2). Why settling and not rest (`--repeatability`,
 docs/results/bench_loop_repeatability.json): the plate wake remembers the previous stroke, and
 at rest it hardly decays (its decay law scales with the plate's speed). With 1 settling period
@@ -73,7 +78,12 @@ FEATHER = {"feather.morphology": "plain"}
 HIDDEN = {"feather.wake": "plate", "feather.added_mass_scale": 1.5, "feather.wake_drag_coeff": 8.0,
           "feather.joint_damping_Nms_rad": 0.003}
 TARGET = 0.95
-REST_S = 3.0
+#: The rest before each run, counted from the previous run's end (BenchObjective): the shortest
+#: from which the tare is within TARE_TOLERANCE_N of rest whatever stroke came before
+#: (`--rest-curve`, docs/results/bench_loop_rest.json). The tare offsets the whole run, and a
+#: stroke's TR moves by ~0.02 per mN of it; 0.5 mN keeps that within the bench's repeatability.
+REST_S = 12.0
+TARE_TOLERANCE_N = 0.0005
 #: Periods run under each stroke before its measured ones (periodic steady state): see
 #: docs/bench-loop.md, "A prior that learns the simulation's bias" (the plate wake remembers the
 #: previous stroke; rest does not erase it, the new stroke does).
@@ -210,6 +220,65 @@ def measure_repeatability(out: Path, configs: list[tuple[float, int]]) -> None:
     (out / "bench_loop_repeatability.json").write_text(json.dumps(result, indent=2) + "\n")
 
 
+def rest_curve(rests_s: tuple[float, ...] = (3, 4, 5, 6, 7, 8, 10, 12, 15, 20)) -> dict:
+    """The tare's error and its TR against the rest before a run (the bench's plant offline,
+    stepped as the client drives it, no noise): `REPEATABILITY_STROKE` measured as the studies
+    measure it (SETTLE_PERIODS + MEASURED_PERIODS) after each of `REPEATABILITY_OTHERS`, the
+    load cell tared at the rest's end. The tare is the force at that moment: a feather that still
+    rings there offsets the whole run. The rest the studies use is the shortest from which the
+    tare stays within TARE_TOLERANCE_N after every predecessor (`chosen_rest_s`)."""
+    from featherstar.cosim.scenes import load_scene
+    from featherstar.cosim.swimmer.controller import resolve_stroke
+    from featherstar.cosim.swimmer.stroke import root_motion
+    from featherstar.hil.blocks import MG996R_RATE_RAD_S
+    from featherstar.hil.fmu_plant import FmuPlant
+
+    space, step_s = stroke_space(PERIOD_S), 0.005
+    amplitude = load_scene("testbed").to_dict()["blocks"]["controller"]["amplitude_deg"]
+    options = {k.split(".", 1)[1]: v for k, v in HIDDEN.items() if k == "feather.wake"}
+    parameters = {k.split(".", 1)[1]: v for k, v in HIDDEN.items() if k != "feather.wake"}
+
+    def run(plant, point: dict, periods: int, tare_N: float) -> np.ndarray:
+        stroke = resolve_stroke({"amplitude_deg": amplitude}, {"period_s": PERIOD_S, **{
+            k.split(".", 1)[1]: v for k, v in space.overrides(point).items() if k.startswith("controller.")}}, "stroke")
+        command, force = plant.angle_rad, []
+        for k in range(round(periods * PERIOD_S / step_s)):
+            limit = MG996R_RATE_RAD_S * step_s
+            command = min(max(root_motion(stroke, (k + 1) * step_s)[0], command - limit), command + limit)
+            plant.set_setpoint_rad(command)
+            impulse = plant.impulse_Ns
+            plant.advance(step_s)
+            force.append((plant.impulse_Ns - impulse) / step_s - tare_N)
+        return np.array(force)
+
+    def thrust_ratio(force: np.ndarray) -> float:
+        measured = force[-round(MEASURED_PERIODS * PERIOD_S / step_s):]
+        return float(measured[measured > 0].sum() / -measured[measured < 0].sum())
+
+    rows = []
+    for i, other in enumerate(REPEATABILITY_OTHERS):
+        for rest_s in rests_s:
+            plant = FmuPlant("plain", feather_parameters=parameters, feather_options=options)
+            try:
+                run(plant, other, SETTLE_PERIODS + MEASURED_PERIODS, 0.0)
+                for _ in range(round(rest_s / step_s)):
+                    plant.set_setpoint_rad(0.0)
+                    plant.advance(step_s)
+                impulse = plant.impulse_Ns
+                plant.advance(0.02)   # the emulator's tare: its converter's mean force over 20 ms
+                tare_N = (plant.impulse_Ns - impulse) / 0.02
+                rows.append({"after": f"other {i}", "rest_s": rest_s, "tare_N": tare_N,
+                             "thrust_ratio": thrust_ratio(run(plant, REPEATABILITY_STROKE,
+                                                              SETTLE_PERIODS + MEASURED_PERIODS, tare_N))})
+            finally:
+                plant.close()
+            print(f"  after other {i}, rest {rest_s:g} s: tare {rows[-1]['tare_N'] * 1e3:+.2f} mN, "
+                  f"TR {rows[-1]['thrust_ratio']:.4f}", flush=True)
+    ok = [r for r in rests_s if all(abs(x["tare_N"]) <= TARE_TOLERANCE_N for x in rows if x["rest_s"] >= r)]
+    return {"stroke": REPEATABILITY_STROKE, "others": REPEATABILITY_OTHERS, "rows": rows,
+            "tare_tolerance_N": TARE_TOLERANCE_N, "chosen_rest_s": min(ok) if ok else None}
+
+
 def iterations_to(observed: list[float], threshold: float) -> int | None:
     return next((i + 1 for i, tr in enumerate(observed) if tr >= threshold), None)
 
@@ -221,6 +290,9 @@ def main() -> None:
     parser.add_argument("--iterations", type=int, default=10)
     parser.add_argument("--sim-iterations", type=int, default=20, help="the simulated study's evaluations")
     parser.add_argument("--out", type=Path, default=Path(__file__).parent.parent / "docs" / "results")
+    parser.add_argument("--rest-curve", action="store_true",
+                        help="no bench: the tare's error and its TR against the rest before a run (the plant "
+                             "offline); writes OUT/bench_loop_rest.json")
     parser.add_argument("--reanalyse", action="store_true",
                         help="no bench: redo the analysis and the plot of OUT/bench_loop_prior.json's studies")
     parser.add_argument("--repeatability", nargs="*", metavar="REST_S:SETTLE", default=None,
@@ -231,6 +303,12 @@ def main() -> None:
         configs = [(float(a.split(":")[0]), int(a.split(":")[1])) for a in args.repeatability or
                    ["3:1", "3:3", "10:1", "3:6"]]
         measure_repeatability(args.out, configs)
+        return
+    if args.rest_curve:
+        curve = rest_curve()
+        args.out.mkdir(parents=True, exist_ok=True)
+        (args.out / "bench_loop_rest.json").write_text(json.dumps(curve, indent=2) + "\n")
+        print(f"chosen rest: {curve['chosen_rest_s']} s (REST_S = {REST_S:g} s)")
         return
     if args.reanalyse:
         write(json.loads((args.out / "bench_loop_prior.json").read_text()), args.out)

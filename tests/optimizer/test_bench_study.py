@@ -221,3 +221,30 @@ def test_a_record_that_ends_short_of_the_run_is_a_discarded_run_not_a_dead_study
         assert len(seen) == 2 and "the samples span 1.989 s of the 2.000 s run" in seen[0][0]
     else:
         assert len(retrying({}, 2.0).time_s) == 501 and seen == []
+
+
+def test_the_rest_counts_from_the_previous_run_s_end_whatever_the_optimizer_computed(monkeypatch):
+    # The tare is taken at the rest's end; a rest added to the optimizer's time between runs
+    # made a run's tare, and so its TR, depend on how long the optimizer computed.
+    now = [100.0]
+    slept = []
+    time_s = np.linspace(0.0, 2.0, 501)
+    run = BenchRun(time_s, np.sin(2 * np.pi * time_s), np.zeros_like(time_s),
+                   _run(lambda t: np.sin(2 * np.pi * t)).summary, True)
+
+    def bench_run(*args):
+        now[0] += 2.0   # the run itself
+        return run
+
+    def sleep(s):
+        slept.append(s)
+        now[0] += s
+
+    monkeypatch.setattr("featherstar.optimizer.bench.objective.run_on_bench", bench_run)
+    monkeypatch.setattr("featherstar.optimizer.bench.objective.time.monotonic", lambda: now[0])
+    monkeypatch.setattr("featherstar.optimizer.bench.objective.time.sleep", sleep)
+    bench = BenchObjective("testbed", {}, rest_s=5.0)
+    for computed_s in (0.0, 1.5, 4.0, 7.0):   # the optimizer's time before each run
+        now[0] += computed_s
+        bench({}, 2.0)
+    assert slept == [5.0, 3.5, 1.0, 0.0]   # first: the whole rest; then rest_s since the run's end
