@@ -36,8 +36,9 @@ def add_bench_options(parser: argparse.ArgumentParser) -> None:
                        help="servo=URL and loadcell=URL (both), as for `featherstar run --hardware`; tip: add "
                             "&reconnect_s=3 so a brief stall discards one run instead of pausing the study")
     group.add_argument("--rest-s", type=number(at_least=0.0), default=DEFAULT_REST_S, metavar="S",
-                       help="the feather rests this long at the servo's safe position before every run "
-                            "(default %(default)s)")
+                       help="the feather rests this long at the servo's safe position before every run, "
+                            "counted from the previous run's end (the load cell tares at the rest's end: a "
+                            "feather still ringing then offsets the whole run; default %(default)s)")
     group.add_argument("--settle-periods", type=count(0), default=3, help="periods run before measuring (default 3)")
     group.add_argument("--periods", type=count(1), default=5, help="measured periods per evaluation (default 5)")
     group.add_argument("--max-attempts", type=count(1), default=DEFAULT_MAX_ATTEMPTS, metavar="N",
