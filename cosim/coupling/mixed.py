@@ -24,8 +24,8 @@ import numpy as np
 from ..errors import StepError
 from ._cvode import CVodeError
 from .context import Context, Recording
-from .schedule import schedule_steps, topo_schedule
-from .strong import OdeGroup, watched_out_nodes
+from .schedule import schedule_steps, topo_schedule, watched_out_nodes
+from .ode_group import OdeGroup
 from .system import System
 from .weak import next_time_event
 

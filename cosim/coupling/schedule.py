@@ -11,7 +11,7 @@ import numpy as np
 from ..errors import StepError
 from ..framework.units import Unit
 from ..sccs import cycle_through, strongly_connected
-from .context import Context
+from .context import Context, Recording
 from .system import System
 
 
@@ -287,3 +287,12 @@ def loop_op(system: System, context: Context, comp: list, src_of: dict, edges: d
     solver = LoopSolver(context, master.loop_tol, master.loop_max_iter, text, tear, setters, getters)
     context.loop_solvers.append(solver)
     return solver
+
+
+def watched_out_nodes(system: System, recording: Recording) -> set[tuple[str, int]]:
+    """The outputs evaluated at every recorded point: the recorded signals and what the guards read."""
+    from ..scene.guards import watched_outputs
+
+    out = watched_outputs(recording.guards)
+    out.update(system.output_node(ref) for ref in recording.requested)
+    return out

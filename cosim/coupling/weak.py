@@ -24,8 +24,8 @@ from ..framework.units import Unit
 from ..scene.data import PortRef
 from ._cvode import CVodeError
 from .context import Context, Recording
-from .schedule import setter_op, topo_schedule
-from .strong import OdeGroup, watched_out_nodes
+from .schedule import setter_op, topo_schedule, watched_out_nodes
+from .ode_group import OdeGroup
 from .system import System
 
 
@@ -36,7 +36,7 @@ class MeStepper:
     whose inputs did not change is integrated exactly as strong coupling would (same rtol, same
     error control); it restarts only where the right-hand side jumps: at changed inputs, at
     events and after a rollback. Discrete inputs are taken in event mode at the step's start;
-    time events inside the step are located exactly (featherstar.cosim.coupling.strong.OdeGroup.integrate)."""
+    time events inside the step are located exactly (featherstar.cosim.coupling.ode_group.OdeGroup.integrate)."""
 
     def __init__(self, system: System, context: Context, unit: Unit, t0: float, method: str, rtol: float,
                  atol: float) -> None:

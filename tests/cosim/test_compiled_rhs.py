@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from conftest import OSCILLATOR, make_scene
 from featherstar.cosim.coupling.context import Context
-from featherstar.cosim.coupling.strong import OdeGroup
+from featherstar.cosim.coupling.ode_group import OdeGroup
 from featherstar.cosim.errors import StepError
 from featherstar.cosim.framework.units import NativeCalls, Unit
 from featherstar.cosim.swimmer.run import run_scene
