@@ -25,7 +25,7 @@
    `null`). Targets (issue 26): discrepancy mean ≤ half the no-prior mean, and on no seed more than
    one iteration worse than no prior.
 
-Each run rests the feather REST_S (12 s, counted from the previous run's end, so the studies'
+Each run rests the feather REST["s"] (12 s; `--rest-s`; counted from the previous run's end, so the studies'
 compute time between runs is part of it: `--rest-curve` measures why: a tare taken while the
 feather still rings offsets the run, and with 3 s the same stroke after the same stroke
 measured TR 0.97-1.11 depending on the second of the ring the tare fell in; the discrepancy arm,
@@ -82,7 +82,7 @@ TARGET = 0.95
 #: from which the tare is within TARE_TOLERANCE_N of rest whatever stroke came before
 #: (`--rest-curve`, docs/results/bench_loop_rest.json). The tare offsets the whole run, and a
 #: stroke's TR moves by ~0.02 per mN of it; 0.5 mN keeps that within the bench's repeatability.
-REST_S = 12.0
+REST = {"s": 12.0}   # --rest-s sets it
 TARE_TOLERANCE_N = 0.0005
 #: Periods run under each stroke before its measured ones (periodic steady state): see
 #: docs/bench-loop.md, "A prior that learns the simulation's bias" (the plate wake remembers the
@@ -109,7 +109,7 @@ def simulated_prior(directory: Path, iterations: int) -> SimPrior:
 
 def bench_study(emulator, out: Path, seed: int, iterations: int, prior: SimPrior, use: str | None,
                 noise_floor_sd: float | None = None) -> dict:
-    bench = bench_objective(emulator, REST_S, SETTLE_PERIODS)
+    bench = bench_objective(emulator, REST["s"], SETTLE_PERIODS)
     plan = MeasurementPlan(load_cell=LoadCell(noise_sd_N=0.0, sample_rate_hz=250.0), settle_periods=SETTLE_PERIODS,
                            periods=MEASURED_PERIODS, seed=seed)
     started = time.perf_counter()
@@ -207,11 +207,12 @@ def measure_repeatability(out: Path, configs: list[tuple[float, int]]) -> None:
     logging.getLogger("hil").setLevel(logging.ERROR)
     result = {"stroke": REPEATABILITY_STROKE, "others": REPEATABILITY_OTHERS, "configs": [], "settling_curve": None}
     for config in [*configs, None]:   # None: the settling curve
-        emulator = spawn_emulator(plant="fmu", morphology="plain", noise_N=0.005, seed=7, plant_parameters=HIDDEN,
+        emulator = spawn_emulator(plant="fmu", morphology=FEATHER["feather.morphology"], noise_N=0.005, seed=7,
+                                  plant_parameters=HIDDEN,
                                   start_timeout_s=300.0)
         try:
             if config is None:
-                result["settling_curve"] = settling_curve(emulator, REPEATABILITY_STROKE, REPEATABILITY_OTHERS, REST_S)
+                result["settling_curve"] = settling_curve(emulator, REPEATABILITY_STROKE, REPEATABILITY_OTHERS, REST["s"])
             else:
                 result["configs"].append(repeatability(emulator, REPEATABILITY_STROKE, REPEATABILITY_OTHERS, *config))
         finally:
@@ -258,7 +259,7 @@ def rest_curve(rests_s: tuple[float, ...] = (3, 4, 5, 6, 7, 8, 10, 12, 15, 20)) 
     rows = []
     for i, other in enumerate(REPEATABILITY_OTHERS):
         for rest_s in rests_s:
-            plant = FmuPlant("plain", feather_parameters=parameters, feather_options=options)
+            plant = FmuPlant(FEATHER["feather.morphology"], feather_parameters=parameters, feather_options=options)
             try:
                 run(plant, other, SETTLE_PERIODS + MEASURED_PERIODS, 0.0)
                 for _ in range(round(rest_s / step_s)):
@@ -279,6 +280,12 @@ def rest_curve(rests_s: tuple[float, ...] = (3, 4, 5, 6, 7, 8, 10, 12, 15, 20)) 
             "tare_tolerance_N": TARE_TOLERANCE_N, "chosen_rest_s": min(ok) if ok else None}
 
 
+def stem(name: str, morphology: str | None = None) -> str:
+    """An output's file stem: the plain feather's keeps the bare name, another feather's adds it."""
+    morphology = morphology or FEATHER["feather.morphology"]
+    return name if morphology == "plain" else f"{name}_{morphology}"
+
+
 def iterations_to(observed: list[float], threshold: float) -> int | None:
     return next((i + 1 for i, tr in enumerate(observed) if tr >= threshold), None)
 
@@ -290,6 +297,12 @@ def main() -> None:
     parser.add_argument("--iterations", type=int, default=10)
     parser.add_argument("--sim-iterations", type=int, default=20, help="the simulated study's evaluations")
     parser.add_argument("--out", type=Path, default=Path(__file__).parent.parent / "docs" / "results")
+    parser.add_argument("--morphology", choices=("plain", "spanwise", "chordwise"), default="plain",
+                        help="the feather of the simulation and of the bench (default plain; others write "
+                             "..._MORPHOLOGY.json)")
+    parser.add_argument("--rest-s", type=float, default=REST["s"],
+                        help=f"rest before each run, from the previous run's end (default {REST['s']:g}: the plain "
+                             "feather's --rest-curve choice; measure another feather's)")
     parser.add_argument("--rest-curve", action="store_true",
                         help="no bench: the tare's error and its TR against the rest before a run (the plant "
                              "offline); writes OUT/bench_loop_rest.json")
@@ -299,6 +312,7 @@ def main() -> None:
                         help="no studies: measure the bench's repeatability at each rest/settling setting "
                              "(default 3:1 3:3 10:1 3:6) and the per-period settling curve")
     args = parser.parse_args()
+    FEATHER["feather.morphology"], REST["s"] = args.morphology, args.rest_s
     if args.repeatability is not None:
         configs = [(float(a.split(":")[0]), int(a.split(":")[1])) for a in args.repeatability or
                    ["3:1", "3:3", "10:1", "3:6"]]
@@ -307,11 +321,11 @@ def main() -> None:
     if args.rest_curve:
         curve = rest_curve()
         args.out.mkdir(parents=True, exist_ok=True)
-        (args.out / "bench_loop_rest.json").write_text(json.dumps(curve, indent=2) + "\n")
-        print(f"chosen rest: {curve['chosen_rest_s']} s (REST_S = {REST_S:g} s)")
+        (args.out / f"{stem('bench_loop_rest')}.json").write_text(json.dumps(curve, indent=2) + "\n")
+        print(f"chosen rest: {curve['chosen_rest_s']} s (REST_S = {REST['s']:g} s)")
         return
     if args.reanalyse:
-        write(json.loads((args.out / "bench_loop_prior.json").read_text()), args.out)
+        write(json.loads((args.out / f"{stem('bench_loop_prior')}.json").read_text()), args.out)
         return
     seeds, iterations, sim_iterations = (2, 4, 10) if args.quick else (args.seeds, args.iterations,
                                                                         args.sim_iterations)
@@ -326,7 +340,8 @@ def main() -> None:
         holdout = SimulationModel(space, prior.points, prior.values).holdout_error()
         print(f"prior: {len(prior.points)} simulated evaluations, best TR {max(prior.values):.3f}; its GP predicts "
               f"held-out simulations within {holdout['rms_error']:.3f} rms", flush=True)
-        emulator = spawn_emulator(plant="fmu", morphology="plain", noise_N=0.005, seed=7, plant_parameters=HIDDEN,
+        emulator = spawn_emulator(plant="fmu", morphology=FEATHER["feather.morphology"], noise_N=0.005, seed=7,
+                                  plant_parameters=HIDDEN,
                                   start_timeout_s=300.0)
         studies = []
         try:
@@ -334,7 +349,7 @@ def main() -> None:
             # best stroke (every prior arm's first) after two other strokes, twice each. Its sd is
             # the discrepancy arm's noise floor (a property of the bench, measured once, not per study).
             best = prior.initial_points(space, 1, maximize=True)[0]
-            repeat = repeatability(emulator, best, REPEATABILITY_OTHERS, REST_S, SETTLE_PERIODS)
+            repeat = repeatability(emulator, best, REPEATABILITY_OTHERS, REST["s"], SETTLE_PERIODS)
             noise_floor_sd = repeat["same_stroke_sd_thrust_ratio"]
             print(f"repeatability: {repeat['same_stroke_thrust_ratio']} -> sd {noise_floor_sd:.4f} TR "
                   f"(the discrepancy arm's noise floor)", flush=True)
@@ -358,14 +373,14 @@ def main() -> None:
         "studies": studies,
         "setup": {"feather": FEATHER, "simulation": "testbed scene, default coefficients, wake none (quasi-steady)",
                   "hidden_plant": HIDDEN, "emulator": "FMU plant (servo + plain feather), noise 5 mN, device-timed",
-                  "rest_s": REST_S, "period_s": PERIOD_S, "settle_periods": SETTLE_PERIODS,
+                  "rest_s": REST["s"], "period_s": PERIOD_S, "settle_periods": SETTLE_PERIODS,
                   "measured_periods": MEASURED_PERIODS,
                   "iterations": iterations, "sim_iterations": sim_iterations, "seeds": seeds, "quick": args.quick},
         "wall_s": time.perf_counter() - started,
         "machine": {"python": platform.python_version(), "cpus": os.cpu_count(), "load_average": os.getloadavg()},
     }
     args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "bench_loop_prior.json").write_text(json.dumps(result, indent=2) + "\n")   # kept if analysis fails
+    (args.out / f"{stem('bench_loop_prior')}.json").write_text(json.dumps(result, indent=2) + "\n")   # kept if analysis fails
     write(result, args.out)
 
 
@@ -446,9 +461,10 @@ def write(result: dict, out: Path) -> None:
     result = analyse(result)
     arms, targets = result["arms"], result["targets"]
     out.mkdir(parents=True, exist_ok=True)
-    (out / "bench_loop_prior.json").write_text(json.dumps(result, indent=2) + "\n")
+    name = stem("bench_loop_prior", result["setup"]["feather"]["feather.morphology"])
+    (out / f"{name}.json").write_text(json.dumps(result, indent=2) + "\n")
     _figure(result["studies"], result["target_thrust_ratio"], result["gain_target_thrust_ratio"],
-            result["baseline_thrust_ratio"], out / "bench_loop_prior.png")
+            result["baseline_thrust_ratio"], out / f"{name}.png")
     for name, arm in arms.items():
         print(f"{name}: iterations to {TARGET:.0%} of best TR {arm['iterations_to_target']} "
               f"(mean {arm['mean_iterations']:.1f}, {arm['reached']}/{arm['studies']} reached; "
@@ -463,7 +479,7 @@ def write(result: dict, out: Path) -> None:
     print(f"targets: {json.dumps(targets)}")
     print(f"repeatability: {json.dumps(result['repeatability'])}")
     print(f"simulation vs bench: {json.dumps(result['simulation_vs_bench'])}")
-    print(f"wrote {out / 'bench_loop_prior.json'} and bench_loop_prior.png ({result['wall_s']:.0f} s of bench)")
+    print(f"wrote {out / name}.json and {name}.png ({result['wall_s']:.0f} s of bench)")
 
 
 def _figure(studies: list[dict], target: float, gain_target: float, baseline: float, path: Path) -> None:
