@@ -461,10 +461,10 @@ def write(result: dict, out: Path) -> None:
     result = analyse(result)
     arms, targets = result["arms"], result["targets"]
     out.mkdir(parents=True, exist_ok=True)
-    name = stem("bench_loop_prior", result["setup"]["feather"]["feather.morphology"])
-    (out / f"{name}.json").write_text(json.dumps(result, indent=2) + "\n")
+    written = stem("bench_loop_prior", result["setup"]["feather"]["feather.morphology"])
+    (out / f"{written}.json").write_text(json.dumps(result, indent=2) + "\n")
     _figure(result["studies"], result["target_thrust_ratio"], result["gain_target_thrust_ratio"],
-            result["baseline_thrust_ratio"], out / f"{name}.png")
+            result["baseline_thrust_ratio"], out / f"{written}.png")
     for name, arm in arms.items():
         print(f"{name}: iterations to {TARGET:.0%} of best TR {arm['iterations_to_target']} "
               f"(mean {arm['mean_iterations']:.1f}, {arm['reached']}/{arm['studies']} reached; "
@@ -479,7 +479,7 @@ def write(result: dict, out: Path) -> None:
     print(f"targets: {json.dumps(targets)}")
     print(f"repeatability: {json.dumps(result['repeatability'])}")
     print(f"simulation vs bench: {json.dumps(result['simulation_vs_bench'])}")
-    print(f"wrote {out / name}.json and {name}.png ({result['wall_s']:.0f} s of bench)")
+    print(f"wrote {out / written}.json and {written}.png ({result['wall_s']:.0f} s of bench)")
 
 
 def _figure(studies: list[dict], target: float, gain_target: float, baseline: float, path: Path) -> None:
