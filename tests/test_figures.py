@@ -431,7 +431,8 @@ def _bench_case(name: str) -> Callable[[Path], None]:
             m.plot(fit, tmp / "c.png", "chordwise feather, offline\nfitted vs hidden: 3 %; R² 0.95")
         elif name == "bench_loop_prior":
             d = _json(name)
-            m._figure(d["studies"], d["target_thrust_ratio"], tmp / "p.png")
+            m._figure(d["studies"], d["target_thrust_ratio"], d["gain_target_thrust_ratio"], d["baseline_thrust_ratio"],
+                      tmp / "p.png")
         elif name == "flap_mechanisms":
             period = {"t_s": list(np.linspace(0, 1.5, 100)), "fold_rad": list(0.3 * np.sin(np.linspace(0, 6, 100))),
                       "thrust_N": list(0.002 * np.sin(np.linspace(0, 6, 100)))}
