@@ -251,6 +251,8 @@ def recipe(scene: str = "testbed") -> list[str]:
     stroke = " ".join(f"{k}={v:g}" for k, v in DISCRIMINATING_STROKE.items())
     return [f"# the stroke that tells the wake laws apart (measured for the {DISCRIMINATING_MORPHOLOGY} feather: "
             "bench/model_form_design.py, docs/bench-loop.md); three runs, each from rest:",
+            "# (on a busy PC give both URLs clock=device, docs/hil.md; an integrating load cell, such as the "
+            "emulator's, wants calibrate --thrust-samples interval-mean: the real-time check used both)",
             *(f"featherstar run {scene} --hardware servo=URL --hardware loadcell=URL --set feather.morphology="
               f"{DISCRIMINATING_MORPHOLOGY} {stroke} master.t_end_s={record_s:g} metrics.settle_periods=0 "
               f"--out runs/r{k}" for k in (1, 2, 3)),
