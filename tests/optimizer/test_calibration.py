@@ -28,6 +28,7 @@ from featherstar.cosim.errors import StepError
 from featherstar.cosim.scenes import load_scene
 from featherstar.cosim.swimmer.report import write_outputs
 from featherstar.cosim.swimmer.run import run_scene
+from featherstar.hil.timed_run import run_bench_scene
 from featherstar.hil.emulator import spawn_emulator
 from featherstar.hil.hardware import bench_command, with_hardware
 from featherstar.optimizer.bench.objective import discard_reasons
@@ -66,8 +67,10 @@ def _emulator(morphology, seed):
 
 
 def _urls(emulator):
-    # A loaded machine may stall a request for a moment: recover, and let the run be discarded.
-    options = "&timeout_s=0.3&reconnect_s=3"
+    # Device-timed: the emulated devices keep the time, so a loaded machine (CI's two workers)
+    # cannot perturb what the chaotic chordwise feather records; streamed, the unseen stroke's
+    # mean thrust once came out 11 % off under load. A stalled request recovers.
+    options = "&timeout_s=0.3&reconnect_s=3&clock=device"
     return {"servo": emulator.servo_url + options, "loadcell": emulator.loadcell_url + options}
 
 
@@ -77,7 +80,7 @@ def _record(morphology, out, seed):
     for attempt in range(ATTEMPTS):
         emulator = _emulator(morphology, seed + 100 * attempt)
         try:
-            result = run_scene(with_hardware(load_scene("testbed"), _urls(emulator)),
+            result = run_bench_scene(with_hardware(load_scene("testbed"), _urls(emulator)),
                                {"feather.morphology": morphology, **BENCH, "master.t_end_s": WINDOW_S + 0.2,
                                 "metrics.settle_periods": 0})
         except StepError as exc:
@@ -139,7 +142,8 @@ def _calibrate_and_predict(morphology, tmp_path):
 
 def test_calibration_of_a_flapped_feather_predicts_an_unseen_strokes_tr_and_mean_thrust(tmp_path):
     """Drag, added mass and the hinge's stiffness recovered within 15 %; the unseen stroke's TR and
-    mean thrust predicted within 10 % (the issue's criterion; measured within 0.5 % and 2.5 %)."""
+    mean thrust predicted within 10 % (the issue's criterion; measured device-timed: TR within 1.3 %,
+    mean thrust 4-6 % low over three runs)."""
     _, measured, predicted, default = _calibrate_and_predict("chordwise", tmp_path)
     for metric in ("thrust_ratio", "mean_thrust_N"):
         assert predicted[metric] == pytest.approx(measured[metric], rel=0.10), metric
